@@ -1,0 +1,3 @@
+from seqrank.cli import main
+
+raise SystemExit(main())

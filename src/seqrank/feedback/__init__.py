@@ -1,0 +1,1 @@
+"""Asking questions and learning from the answers: schemes, closure, teachers."""

@@ -1,0 +1,221 @@
+"""Comparison schemes: which questions a session asks, given the answers so far.
+
+Every scheme is a function `(pool_size, budget, ask, rng, choose) -> SessionRecord`.
+Segments are ids `0 .. pool_size - 1`; `ask(first, second)` returns an `Answer` and never
+tells the scheme whether a script or a person answered. `budget` counts questions asked:
+skipped answers spend budget too (as in PEBBLE). A drawn segment is never drawn again in
+the same session.
+
+Choices this module makes (SPEC section 3 "decide"):
+- equal answers add no ordering: sequential still moves on to the challenger (the tie
+  closes the monotone chain, because the closure never chains ties); root keeps its root.
+- skipped answers add no edge: sequential moves on to the challenger (the chain breaks);
+  root keeps its root and the challenger is dropped; ranked drops the segment.
+- the defender is always `first` in a question; showing sides to a person (randomised and
+  mapped back) is the labelling page's job, not the scheme's.
+- `ranked` inserts each new segment into a ranked list of groups of equally preferred
+  segments by binary search against each group's founding member. An EQUAL answer joins the
+  group, SKIP drops the segment; when the budget runs out mid-search the segment is not
+  placed, but the answers it got still count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from seqrank.types import Answer, AnsweredQuestion, Question
+
+Ask = Callable[[int, int], Answer]
+
+
+class Chooser(Protocol):
+    """Picks the next segment: returns a position in `available` (ids not drawn yet).
+
+    `defender` is the segment the new one will be compared with, or None when there is
+    none yet (the first segment of a chain, of a pairwise pair, or a ranked insertion).
+    """
+
+    def __call__(
+        self, defender: int | None, available: Sequence[int], rng: np.random.Generator
+    ) -> int: ...
+
+
+def uniform_choice(defender: int | None, available: Sequence[int], rng: np.random.Generator) -> int:
+    """The default: a uniformly random segment not drawn yet."""
+    return int(rng.integers(len(available)))
+
+
+def in_order_choice(
+    defender: int | None, available: Sequence[int], rng: np.random.Generator
+) -> int:
+    """Draw segments in id order: makes a scheme replay a given ordering exactly."""
+    return 0
+
+
+@dataclass(frozen=True)
+class SessionRecord:
+    """What one session asked and heard, in order, and which segments it drew."""
+
+    scheme: str
+    answers: tuple[AnsweredQuestion, ...]
+    segments: tuple[int, ...]
+
+    @property
+    def asked(self) -> int:
+        return len(self.answers)
+
+
+class _Session:
+    """Bookkeeping shared by the schemes: drawing segments, asking, recording."""
+
+    def __init__(self, pool_size: int, ask: Ask, rng: np.random.Generator, choose: Chooser):
+        self.available = list(range(pool_size))
+        self.drawn: list[int] = []
+        self.answers: list[AnsweredQuestion] = []
+        self._ask, self._rng, self._choose = ask, rng, choose
+
+    def draw(self, defender: int | None) -> int:
+        position = self._choose(defender, self.available, self._rng)
+        segment = self.available.pop(position)
+        self.drawn.append(segment)
+        return segment
+
+    def ask(self, first: int, second: int, first_is_defender: bool) -> Answer:
+        question = Question(len(self.answers), first, second, first_is_defender)
+        answer = self._ask(first, second)
+        self.answers.append(AnsweredQuestion(question, answer))
+        return answer
+
+    def record(self, scheme: str) -> SessionRecord:
+        return SessionRecord(scheme, tuple(self.answers), tuple(self.drawn))
+
+
+def pairwise(
+    pool_size: int,
+    budget: int,
+    ask: Ask,
+    rng: np.random.Generator,
+    choose: Chooser = uniform_choice,
+) -> SessionRecord:
+    """The baseline: `budget` disjoint pairs of 2 * budget distinct segments."""
+    _check_pool("pairwise", pool_size, budget)
+    session = _Session(pool_size, ask, rng, choose)
+    for _ in range(budget):
+        first = session.draw(None)
+        second = session.draw(first)
+        session.ask(first, second, first_is_defender=False)
+    return session.record("pairwise")
+
+
+def sequential(
+    pool_size: int,
+    budget: int,
+    ask: Ask,
+    rng: np.random.Generator,
+    choose: Chooser = uniform_choice,
+) -> SessionRecord:
+    """Sequential pairwise (Algorithm 1): each challenger meets the previous segment."""
+    _check_pool("sequential", pool_size, budget)
+    session = _Session(pool_size, ask, rng, choose)
+    defender = session.draw(None)
+    for _ in range(budget):
+        challenger = session.draw(defender)
+        session.ask(defender, challenger, first_is_defender=True)
+        defender = challenger
+    return session.record("sequential")
+
+
+def root(
+    pool_size: int,
+    budget: int,
+    ask: Ask,
+    rng: np.random.Generator,
+    choose: Chooser = uniform_choice,
+) -> SessionRecord:
+    """Root pairwise (Algorithm 2): each challenger meets the most preferred so far."""
+    _check_pool("root", pool_size, budget)
+    session = _Session(pool_size, ask, rng, choose)
+    current_root = session.draw(None)
+    for _ in range(budget):
+        challenger = session.draw(current_root)
+        if session.ask(current_root, challenger, first_is_defender=True) is Answer.SECOND:
+            current_root = challenger
+    return session.record("root")
+
+
+def ranked(
+    pool_size: int,
+    budget: int,
+    ask: Ask,
+    rng: np.random.Generator,
+    choose: Chooser = uniform_choice,
+) -> SessionRecord:
+    """Binary insertion into a ranked list of groups of equally preferred segments."""
+    _check_pool("ranked", pool_size, budget)
+    session = _Session(pool_size, ask, rng, choose)
+    groups: list[list[int]] = [[session.draw(None)]]  # worst group first
+    while len(session.answers) < budget and session.available:
+        newcomer = session.draw(None)
+        _insert(session, groups, newcomer, budget)
+    return session.record("ranked")
+
+
+def _insert(session: _Session, groups: list[list[int]], newcomer: int, budget: int) -> None:
+    low, high = 0, len(groups)
+    while low < high:
+        if len(session.answers) >= budget:
+            return
+        middle = (low + high) // 2
+        founder = groups[middle][0]
+        answer = session.ask(founder, newcomer, first_is_defender=True)
+        if answer is Answer.SKIP:
+            return
+        if answer is Answer.EQUAL:
+            groups[middle].append(newcomer)
+            return
+        if answer is Answer.FIRST:
+            high = middle
+        else:
+            low = middle + 1
+    groups.insert(low, [newcomer])
+
+
+Scheme = Callable[[int, int, Ask, np.random.Generator, Chooser], SessionRecord]
+
+SCHEMES: dict[str, Scheme] = {
+    "pairwise": pairwise,
+    "sequential": sequential,
+    "root": root,
+    "ranked": ranked,
+}
+
+
+def get_scheme(name: str) -> Scheme:
+    """The scheme called `name`; a ValueError names the accepted schemes."""
+    try:
+        return SCHEMES[name]
+    except KeyError:
+        raise ValueError(f"unknown scheme {name!r}; accepted: {', '.join(SCHEMES)}") from None
+
+
+def segments_needed(scheme: str, budget: int) -> int:
+    """How many distinct segments a session of `budget` questions may draw."""
+    get_scheme(scheme)
+    return 2 * budget if scheme == "pairwise" else budget + 1
+
+
+def _check_pool(scheme: str, pool_size: int, budget: int) -> None:
+    if budget < 1:
+        raise ValueError(f"{scheme}: the question budget must be at least 1, got {budget}")
+    needed = segments_needed(scheme, budget)
+    if scheme == "ranked":
+        needed = 2  # ranked stops early when the pool runs out
+    if pool_size < needed:
+        raise ValueError(
+            f"{scheme}: {budget} questions need at least {needed} distinct segments, "
+            f"but the pool has {pool_size}"
+        )

@@ -1,0 +1,137 @@
+"""Scripted teachers with the B-Pref knobs (Lee et al. 2021), applied in SPEC section 4 order.
+
+A teacher answers "is segment A preferred to segment B?" from the true per-step rewards
+of both segments. The knobs, in the order they act:
+
+1. skip     drop the pair when max(sum r_A, sum r_B) <= eps_skip * margin (only if eps_skip > 0)
+2. equal    mark the pair when |sum r_A - sum r_B| < eps_equal * margin
+3. myopia   weight step t by gamma ** (H - 1 - t) before summing
+4. rationality  beta <= 0 or inf: deterministic; else P(A) = sigmoid(beta * (S_A - S_B))
+5. mistake  flip the answer with probability eps_mistake
+6. pairs marked at step 2 are answered EQUAL
+
+`margin` is the mean true return of recent training episodes scaled to segment length
+(mean episode return * H / episode length). It is a plain value passed by the caller each
+session: it is never squared or otherwise changed between sessions (the reference code
+squares eps after its first session; that is a bug this module does not reproduce).
+
+Exact ties of the (myopic) sums under a deterministic teacher follow `tie_rule`:
+"equal" (default) answers EQUAL, "first" prefers A (B-Pref's silent behaviour),
+"random" flips a fair coin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+
+from seqrank.types import Answer
+
+TieRule = Literal["equal", "first", "random"]
+TIE_RULES: tuple[TieRule, ...] = ("equal", "first", "random")
+
+
+@dataclass(frozen=True)
+class TeacherConfig:
+    """B-Pref teacher knobs. Defaults are the perfect (oracle) teacher."""
+
+    beta: float = math.inf
+    gamma: float = 1.0
+    eps_mistake: float = 0.0
+    eps_skip: float = 0.0
+    eps_equal: float = 0.0
+    tie_rule: TieRule = "equal"
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.beta):
+            raise ValueError("teacher beta must be a number (<= 0 or inf means deterministic)")
+        if not 0.0 < self.gamma <= 1.0:
+            raise ValueError(f"teacher gamma must be in (0, 1], got {self.gamma}")
+        for name in ("eps_mistake", "eps_skip", "eps_equal"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"teacher {name} must be in [0, 1], got {value}")
+        if self.tie_rule not in TIE_RULES:
+            raise ValueError(
+                f"teacher tie_rule {self.tie_rule!r} is not one of {', '.join(TIE_RULES)}"
+            )
+
+    @property
+    def deterministic(self) -> bool:
+        return self.beta <= 0 or math.isinf(self.beta)
+
+
+TEACHER_PRESETS: dict[str, TeacherConfig] = {
+    "oracle": TeacherConfig(),
+    "mistake": TeacherConfig(eps_mistake=0.1),
+    "noisy": TeacherConfig(beta=1.0),
+    "skip": TeacherConfig(eps_skip=0.1),
+    "myopic": TeacherConfig(gamma=0.9),
+    "equal": TeacherConfig(eps_equal=0.1),
+}
+
+
+def teacher_preset(name: str) -> TeacherConfig:
+    """The named B-Pref preset; a ValueError names the accepted presets."""
+    try:
+        return TEACHER_PRESETS[name]
+    except KeyError:
+        accepted = ", ".join(TEACHER_PRESETS)
+        raise ValueError(f"unknown teacher preset {name!r}; accepted: {accepted}") from None
+
+
+@dataclass(frozen=True)
+class ScriptedTeacher:
+    """Answers comparisons of two segments from their true per-step rewards."""
+
+    config: TeacherConfig
+    margin: float = 0.0
+
+    def with_margin(self, margin: float) -> ScriptedTeacher:
+        """The same teacher with a new margin (call once per feedback session)."""
+        return replace(self, margin=float(margin))
+
+    def answer(
+        self, rewards_a: np.ndarray, rewards_b: np.ndarray, rng: np.random.Generator
+    ) -> Answer:
+        cfg = self.config
+        return_a, return_b = float(np.sum(rewards_a)), float(np.sum(rewards_b))
+        if cfg.eps_skip > 0 and max(return_a, return_b) <= cfg.eps_skip * self.margin:
+            return Answer.SKIP
+        marked_equal = abs(return_a - return_b) < cfg.eps_equal * self.margin
+        score_a = _myopic_sum(rewards_a, cfg.gamma)
+        score_b = _myopic_sum(rewards_b, cfg.gamma)
+        answer = _rational_choice(score_a, score_b, cfg, rng)
+        if cfg.eps_mistake > 0 and rng.random() < cfg.eps_mistake:
+            answer = answer.flipped()
+        return Answer.EQUAL if marked_equal else answer
+
+
+def _myopic_sum(rewards: np.ndarray, gamma: float) -> float:
+    rewards = np.asarray(rewards, dtype=np.float64)
+    if gamma == 1.0:
+        return float(rewards.sum())
+    horizon = rewards.shape[0]
+    weights = gamma ** np.arange(horizon - 1, -1, -1, dtype=np.float64)
+    return float(np.dot(weights, rewards))
+
+
+def _rational_choice(
+    score_a: float, score_b: float, cfg: TeacherConfig, rng: np.random.Generator
+) -> Answer:
+    if not cfg.deterministic:
+        logit = cfg.beta * (score_a - score_b)
+        prob_a = 1.0 / (1.0 + math.exp(-logit)) if logit > -700 else 0.0
+        return Answer.FIRST if rng.random() < prob_a else Answer.SECOND
+    if score_a > score_b:
+        return Answer.FIRST
+    if score_b > score_a:
+        return Answer.SECOND
+    if cfg.tie_rule == "equal":
+        return Answer.EQUAL
+    if cfg.tie_rule == "first":
+        return Answer.FIRST
+    return Answer.FIRST if rng.random() < 0.5 else Answer.SECOND

@@ -1,0 +1,129 @@
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from seqrank.cli import main
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "seqrank", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_theory_json_has_the_documented_keys_and_exact_values(capsys):
+    assert (
+        main(
+            [
+                "theory",
+                "--m",
+                "4",
+                "11",
+                "--sessions",
+                "200",
+                "--enumerate-max",
+                "5",
+                "--format",
+                "json",
+            ]
+        )
+        == 0
+    )
+    payload = json.loads(capsys.readouterr().out)
+    assert set(payload) == {"parameters", "rows", "disagreements", "paper_figure13"}
+    by_m = {row["m"]: row for row in payload["rows"]}
+    assert by_m[4]["sequential_enumerated"] == pytest.approx(3.75)
+    assert by_m[4]["root_enumerated"] == pytest.approx(23 / 6)
+    assert by_m[11]["sequential_enumerated"] is None
+    assert by_m[11]["questions"] == 10
+    assert any("Lemma 1" in line for line in payload["disagreements"])
+
+
+def test_theory_table_shows_the_findings():
+    result = run_cli("theory", "--m", "3", "5", "--sessions", "100", "--enumerate-max", "5")
+    assert result.returncode == 0, result.stderr
+    assert "Sequential: expected labelled pairs" in result.stdout
+    assert "paper recurrence a_M (Lemma 1) disagrees for M = 5" in result.stdout
+
+
+def test_simulate_writes_json_and_png(tmp_path, capsys):
+    out = tmp_path / "sim"
+    code = main(
+        [
+            "simulate",
+            "--questions",
+            "8",
+            "--sessions",
+            "5",
+            "--schemes",
+            "sequential,root",
+            "--teachers",
+            "oracle,equal",
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0
+    payload = json.loads((out / "simulate.json").read_text())
+    assert [(r["scheme"], r["teacher"]) for r in payload["results"]] == [
+        ("sequential", "oracle"),
+        ("sequential", "equal"),
+        ("root", "oracle"),
+        ("root", "equal"),
+    ]
+    assert (out / "simulate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "Feedback efficiency" in capsys.readouterr().out
+
+
+def test_simulate_json_on_stdout(tmp_path, capsys):
+    code = main(
+        [
+            "simulate",
+            "--questions",
+            "4",
+            "--sessions",
+            "3",
+            "--schemes",
+            "pairwise",
+            "--teachers",
+            "mistake",
+            "--out",
+            str(tmp_path),
+            "--no-plot",
+            "--format",
+            "json",
+        ]
+    )
+    assert code == 0
+    assert json.loads(capsys.readouterr().out)["results"][0]["pairs_per_question"] == 1.0
+    assert not (tmp_path / "simulate.png").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["theory", "--m", "1"], "argument --m: 1 is too small; it must be >= 2"),
+        (["theory", "--m", "ten"], "'ten' is not a whole number"),
+        (["theory", "--enumerate-max", "12"], "--enumerate-max 12 is too large"),
+        (["theory", "--delta", "1.5"], "1.5 must lie strictly between 0 and 1"),
+        (["theory", "--format", "xml"], "invalid choice: 'xml'"),
+        (["simulate", "--questions", "0"], "0 is too small; it must be >= 1"),
+        (
+            ["simulate", "--schemes", "sequential,tree"],
+            "unknown scheme 'tree'; accepted: pairwise, sequential, root, ranked",
+        ),
+        (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
+        (["simulate", "--sessions", "1"], "1 is too small; it must be >= 2"),
+        (["train"], "invalid choice: 'train'"),
+    ],
+)
+def test_bad_arguments_give_one_clear_line_and_exit_2(args, message):
+    result = run_cli(*args)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in result.stderr
