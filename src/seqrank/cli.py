@@ -1,4 +1,4 @@
-"""The `seqrank` command line: `seqrank theory`, `seqrank simulate`."""
+"""The `seqrank` command line: `seqrank train`, `seqrank theory`, `seqrank simulate`."""
 
 from __future__ import annotations
 
@@ -13,10 +13,12 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from seqrank import __version__, console_tables
+from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
 from seqrank.simulate import simulate
 from seqrank.theory import DEFAULT_MS, PAPER_FIGURE13, compute_theory, disagreements
+from seqrank.train_cli import add_train_parser, run_train
 
 ENUMERATION_LIMIT = 9  # 9! orderings through the real code take about a minute
 
@@ -146,6 +148,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="what to print on stdout (the JSON file is written either way)",
     )
     sim.set_defaults(handler=_run_simulate)
+
+    add_train_parser(commands)
+    commands.choices["train"].set_defaults(handler=run_train)
     return parser
 
 
@@ -162,7 +167,7 @@ def _progress(console: Console) -> Progress:
 
 def _run_theory(args: argparse.Namespace, out: Console, err: Console) -> int:
     if args.enumerate_max > ENUMERATION_LIMIT:
-        raise _UsageError(
+        raise UsageError(
             f"--enumerate-max {args.enumerate_max} is too large: enumeration grows as M! "
             f"(accepted: 0 to {ENUMERATION_LIMIT})"
         )
@@ -235,10 +240,6 @@ def _run_simulate(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
-class _UsageError(Exception):
-    pass
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -247,7 +248,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     err = Console(stderr=True)
     try:
         code: int = args.handler(args, out, err)
-    except _UsageError as problem:
+    except UsageError as problem:
         print(f"seqrank {args.command}: error: {problem}", file=sys.stderr)
         return 2
     return code

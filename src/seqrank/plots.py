@@ -39,3 +39,15 @@ def plot_simulation(results: Sequence[CellResult], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_curve(curve: Sequence[tuple[int, float]], path: Path, title: str) -> None:
+    """Evaluation return against environment steps."""
+    fig, axis = plt.subplots(figsize=(6, 4), constrained_layout=True)
+    axis.plot([s for s, _ in curve], [r for _, r in curve], marker="o")
+    axis.set_xlabel("environment steps")
+    axis.set_ylabel("evaluation return")
+    axis.set_title(title)
+    axis.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,186 @@
+"""One frozen config per run: the CLI options, the saved config.json and the presets at once.
+
+`resolve_config(task, scale, overrides)` starts from the suite defaults (SPEC section 2),
+applies the task's row of the paper's Table 2, then the size preset, then the user's
+overrides. Every field is a `seqrank train` option (`--field-name VALUE`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from seqrank.envs import canonical_task
+from seqrank.feedback.schemes import SCHEMES
+from seqrank.feedback.teachers import TEACHER_PRESETS
+
+BACKBONES = ("pebble", "mrn")
+SELECTIONS = ("uniform", "disagreement", "entropy")
+SCALES = ("paper", "small")
+DEVICES = ("auto", "cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    task: str = "walker_walk"
+    scheme: str = "sequential"
+    teacher: str = "oracle"
+    backbone: str = "pebble"
+    seed: int = 0
+    steps: int = 500_000
+    device: str = "auto"
+    scale: str = "paper"
+    # SAC (SPEC section 2)
+    hidden: int = 1024
+    layers: int = 2
+    batch: int = 1024
+    actor_lr: float = 5e-4
+    critic_lr: float = 5e-4
+    alpha_lr: float = 1e-4
+    init_temperature: float = 0.1
+    discount: float = 0.99
+    tau: float = 0.005
+    target_update_every: int = 2
+    # schedule (SPEC section 1)
+    seed_steps: int = 1_000
+    unsup_steps: int = 9_000
+    knn_k: int = 5
+    updates_after_reset: int = 100
+    # feedback (SPEC sections 3 and 8)
+    max_feedback: int = 400
+    reward_batch: int = 40
+    feedback_frequency: int = 20_000
+    segment_length: int = 50
+    selection: str = "uniform"
+    oversample: int = 10
+    episodes_kept: int = 100
+    # reward model (SPEC section 5)
+    reward_ensemble: int = 3
+    reward_hidden: int = 256
+    reward_layers: int = 3
+    reward_lr: float = 3e-4
+    reward_minibatch: int = 128
+    reward_epochs: int = 50
+    reward_stop_accuracy: float = 0.97
+    # MRN (SPEC section 7)
+    meta_update_frequency: int = 1_000
+    meta_loss_weight: float = 0.1
+    # evaluation, logging, checkpoints
+    eval_every: int = 10_000
+    eval_episodes: int = 10
+    checkpoint_every: int = 10_000
+    heldout_pairs: int = 500
+
+    @property
+    def sessions(self) -> int:
+        return math.ceil(self.max_feedback / self.reward_batch)
+
+    @property
+    def first_session_step(self) -> int:
+        return self.seed_steps + self.unsup_steps
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+# Supplementary Table 2: lr, feedback frequency, max feedback, reward batch, meta freq, steps.
+TABLE2: dict[str, tuple[float, int, int, int, int, int]] = {
+    "walker_walk": (5e-4, 20_000, 400, 40, 1_000, 500_000),
+    "cheetah_run": (5e-4, 20_000, 200, 20, 1_000, 1_000_000),
+    "quadruped_walk": (1e-4, 30_000, 1_000, 100, 1_000, 1_000_000),
+    "humanoid_walk": (1e-4, 30_000, 40_000, 500, 10_000, 1_000_000),
+    "hopper_hop": (1e-4, 20_000, 4_000, 100, 1_000, 1_000_000),
+    "button-press-v3": (3e-4, 5_000, 10_000, 50, 5_000, 1_000_000),
+    "door-open-v3": (3e-4, 5_000, 10_000, 200, 10_000, 1_000_000),
+    "drawer-open-v3": (3e-4, 5_000, 20_000, 200, 5_000, 1_000_000),
+    "sweep-into-v3": (3e-4, 5_000, 10_000, 100, 5_000, 1_000_000),
+    "window-open-v3": (3e-4, 5_000, 1_000, 100, 5_000, 1_000_000),
+    "hammer-v3": (3e-4, 5_000, 10_000, 30, 10_000, 1_000_000),
+}
+
+SUITE_DEFAULTS: dict[str, dict[str, Any]] = {
+    "dmc": {"hidden": 1024, "layers": 2, "batch": 1024, "reward_epochs": 50},
+    "metaworld": {"hidden": 256, "layers": 3, "batch": 512, "reward_epochs": 10},
+}
+
+# Sized for a 2-core CPU: about 20 minutes for the default walker_walk run.
+SMALL_PRESET: dict[str, Any] = {
+    "hidden": 256,
+    "layers": 2,
+    "batch": 256,
+    "steps": 60_000,
+    "unsup_steps": 4_000,
+    "max_feedback": 100,
+    "reward_batch": 20,
+    "feedback_frequency": 10_000,
+    "reward_epochs": 30,
+    "eval_every": 10_000,
+    "eval_episodes": 5,
+    "meta_update_frequency": 1_000,
+}
+
+
+def table2_overrides(task: str) -> dict[str, Any]:
+    suite, name = canonical_task(task)
+    values: dict[str, Any] = {"task": task, **SUITE_DEFAULTS[suite]}
+    row = TABLE2.get(name)
+    if row is not None:
+        lr, freq, feedback, batch, meta, steps = row
+        values.update(
+            actor_lr=lr,
+            critic_lr=lr,
+            feedback_frequency=freq,
+            max_feedback=feedback,
+            reward_batch=batch,
+            meta_update_frequency=meta,
+            steps=steps,
+        )
+    return values
+
+
+def resolve_config(task: str, scale: str, overrides: dict[str, Any]) -> TrainConfig:
+    """Suite defaults, then Table 2, then the size preset, then the user's overrides."""
+    values = table2_overrides(task)
+    if scale == "small":
+        values.update(SMALL_PRESET)
+    values["scale"] = scale
+    values.update(overrides)
+    config = replace(TrainConfig(), **values)
+    validate(config)
+    return config
+
+
+def validate(config: TrainConfig) -> None:
+    """Raise ValueError naming the bad value and what is accepted."""
+    canonical_task(config.task)
+    for name, accepted in (
+        ("scheme", tuple(SCHEMES)),
+        ("teacher", tuple(TEACHER_PRESETS)),
+        ("backbone", BACKBONES),
+        ("selection", SELECTIONS),
+        ("scale", SCALES),
+        ("device", DEVICES),
+    ):
+        value = getattr(config, name)
+        if value not in accepted:
+            raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+    positive = [f.name for f in fields(config) if f.type in ("int", "float")]
+    for name in positive:
+        if name in ("seed", "unsup_steps", "updates_after_reset"):
+            continue
+        if getattr(config, name) <= 0:
+            raise ValueError(f"{name} must be positive, got {getattr(config, name)}")
+    if config.reward_batch > config.max_feedback:
+        raise ValueError(
+            f"reward_batch {config.reward_batch} exceeds max_feedback {config.max_feedback}: "
+            "a session cannot ask more questions than the whole budget"
+        )
+    last_session = config.first_session_step + (config.sessions - 1) * config.feedback_frequency
+    if last_session >= config.steps:
+        raise ValueError(
+            f"impossible budget: {config.sessions} sessions of {config.reward_batch} questions "
+            f"every {config.feedback_frequency} steps from step {config.first_session_step} "
+            f"end at step {last_session}, but the run has only {config.steps} steps; "
+            "raise --steps or --reward-batch, or lower --max-feedback or --feedback-frequency"
+        )

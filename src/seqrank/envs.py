@@ -1,0 +1,231 @@
+"""One factory for DMControl and Meta-World v3 tasks, with gymnasium semantics.
+
+`make_env("walker_walk")`, `make_env("dmc:cartpole_swingup")`, `make_env("door-open")`,
+`make_env("metaworld:door-open-v3")`. Every environment:
+
+- returns flattened float32 observations and takes actions in [-1, 1];
+- puts `success` in every step's info (always False on DMControl, which has none);
+- has no true terminals: episodes end by time limit (`truncated`), DMC 1 000 steps,
+  Meta-World 500;
+- is reseeded at every `reset(seed=...)`, so an episode is a function of its seed (this is
+  what lets a killed run resume exactly); Meta-World draws its task (goal) from the 50 MT1
+  tasks with that seed and reports it as `info["task_index"]`;
+- renders headless frames (MuJoCo with EGL unless MUJOCO_GL says otherwise) and saves /
+  restores the full physics state of any step, so a segment can be re-rendered later.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # headless; must be set before MuJoCo loads GL
+
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+DMC_PAPER_TASKS = ("walker_walk", "cheetah_run", "quadruped_walk", "humanoid_walk", "hopper_hop")
+METAWORLD_PAPER_TASKS = (
+    "button-press",
+    "door-open",
+    "drawer-open",
+    "sweep-into",
+    "window-open",
+    "hammer",
+)
+PAPER_TASKS = DMC_PAPER_TASKS + METAWORLD_PAPER_TASKS
+FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def canonical_task(name: str) -> tuple[str, str]:
+    """("dmc", "walker_walk") or ("metaworld", "door-open-v3"); ValueError if unknown."""
+    suite_name, _, task = name.partition(":") if ":" in name else ("", "", name)
+    if suite_name in ("", "dmc") and task in _dmc_tasks():
+        return "dmc", task
+    mw_task = task if task.endswith("-v3") else f"{task}-v3"
+    if suite_name in ("", "metaworld") and mw_task in _metaworld_tasks():
+        return "metaworld", mw_task
+    raise ValueError(
+        f"unknown task {name!r}; accepted: {', '.join(PAPER_TASKS)}, any DMControl "
+        "domain_task (e.g. dmc:cartpole_swingup) or Meta-World v3 MT1 task "
+        "(e.g. metaworld:reach-v3)"
+    )
+
+
+def _dmc_tasks() -> set[str]:
+    from dm_control import suite
+
+    return {f"{domain}_{task}" for domain, task in suite.ALL_TASKS}
+
+
+def _metaworld_tasks() -> set[str]:
+    import metaworld
+
+    return set(metaworld.MT1.ENV_NAMES)
+
+
+def make_env(name: str, seed: int = 0) -> SimEnv:
+    suite_name, task = canonical_task(name)
+    if suite_name == "dmc":
+        return DMCEnv(task, seed)
+    return MetaWorldEnv(task, seed)
+
+
+class SimEnv(gym.Env[np.ndarray, np.ndarray]):
+    """What the two suites share: spaces, rendering, physics state."""
+
+    name: str
+    episode_length: int
+    _model: Any
+    _data: Any
+
+    def _set_spaces(self, obs_dim: int, act_dim: int) -> None:
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (act_dim,), np.float32)
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+
+    @property
+    def obs_dim(self) -> int:
+        return int(self.observation_space.shape[0])  # type: ignore[index]
+
+    @property
+    def act_dim(self) -> int:
+        return int(self.action_space.shape[0])  # type: ignore[index]
+
+    def get_state(self) -> np.ndarray:
+        """The full physics state of the current step (float64 vector)."""
+        state = np.empty(mujoco.mj_stateSize(self._model, FULL_STATE), dtype=np.float64)
+        mujoco.mj_getState(self._model, self._data, state, FULL_STATE)
+        return state
+
+    def set_state(self, state: np.ndarray) -> None:
+        mujoco.mj_setState(self._model, self._data, np.asarray(state, np.float64), FULL_STATE)
+        mujoco.mj_forward(self._model, self._data)
+
+    def render_frame(self, width: int = 128, height: int = 128) -> np.ndarray:
+        """An RGB uint8 frame (height, width, 3) of the current state."""
+        renderer = self._renderers.get((width, height))
+        if renderer is None:
+            renderer = mujoco.Renderer(self._model, height, width)
+            self._renderers[(width, height)] = renderer
+        renderer.update_scene(self._data, camera=self._camera)
+        frame = renderer.render()
+        return frame[::-1].copy() if self._flip else frame
+
+    def render_states(
+        self, states: np.ndarray, context: int | None = None, width: int = 128, height: int = 128
+    ) -> np.ndarray:
+        """Frames (T, height, width, 3) of saved states; `context` is the episode's task."""
+        self.restore_context(context)
+        frames = []
+        for state in states:
+            self.set_state(state)
+            frames.append(self.render_frame(width, height))
+        return np.stack(frames)
+
+    def restore_context(self, context: int | None) -> None:
+        """Make the episode-level setting (Meta-World's task) current again."""
+
+    _camera: int | str = 0
+    _flip = False
+
+    def close(self) -> None:
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
+
+
+class DMCEnv(SimEnv):
+    def __init__(self, task: str, seed: int = 0):
+        from dm_control import suite
+
+        domain, _, task_name = task.partition("_")
+        if (domain, task_name) not in suite.ALL_TASKS:  # e.g. ball_in_cup_catch
+            domain, task_name = next((d, t) for d, t in suite.ALL_TASKS if f"{d}_{t}" == task)
+        self.name = f"dmc:{task}"
+        self._env = suite.load(domain, task_name, task_kwargs={"random": seed})
+        spec = self._env.action_spec()
+        self._low, self._high = spec.minimum.astype(np.float64), spec.maximum.astype(np.float64)
+        obs_dim = sum(int(np.prod(s.shape)) for s in self._env.observation_spec().values())
+        self._set_spaces(obs_dim, spec.shape[0])
+        self._model = self._env.physics.model.ptr
+        self._data = self._env.physics.data.ptr
+        self.episode_length = round(self._env._step_limit)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is not None:
+            self._env.task._random = np.random.RandomState(seed)
+        step = self._env.reset()
+        return _flatten(step.observation), {"success": False}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        action = np.clip(np.asarray(action, np.float64), -1.0, 1.0)
+        step = self._env.step(self._low + (action + 1.0) * 0.5 * (self._high - self._low))
+        reward = float(step.reward or 0.0)
+        return _flatten(step.observation), reward, False, bool(step.last()), {"success": False}
+
+
+def _flatten(observation: dict[str, Any]) -> np.ndarray:
+    return np.concatenate([np.asarray(v, np.float32).ravel() for v in observation.values()])
+
+
+def _patch_metaworld_mocap_welds() -> None:
+    """Meta-World 3.0.0 writes 11 weld parameters where MuJoCo >= 3.4 has 12 slots.
+
+    Write the same 11 values into the first 11 slots (the 12th, torque scale, keeps
+    MuJoCo's default). Without this, every Meta-World env fails at construction.
+    """
+    from metaworld.sawyer_xyz_env import SawyerMocapBase
+
+    def reset_mocap_welds(self: Any) -> None:
+        if self.model.nmocap > 0 and self.model.eq_data is not None:
+            for i in range(self.model.eq_data.shape[0]):
+                if self.model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD:
+                    self.model.eq_data[i, :11] = [0, 0, 0, 0, 0, 0, -1, 0, 0, 0, 5]
+
+    SawyerMocapBase.reset_mocap_welds = reset_mocap_welds  # type: ignore[method-assign]
+
+
+class MetaWorldEnv(SimEnv):
+    _camera = "corner"
+    _flip = True  # Meta-World's corner cameras render upside down
+
+    def __init__(self, task: str, seed: int = 0):
+        import metaworld
+
+        _patch_metaworld_mocap_welds()
+        self.name = f"metaworld:{task}"
+        benchmark = metaworld.MT1(task, seed=seed)
+        self._tasks = benchmark.train_tasks
+        self._env = benchmark.train_classes[task]()
+        self._env.set_task(self._tasks[0])
+        self._task_index = 0
+        self.episode_length = int(self._env.max_path_length)
+        spaces = (self._env.observation_space, self._env.action_space)
+        self._set_spaces(*(len(space.low) for space in spaces))  # type: ignore[attr-defined]
+        self._model, self._data = self._env.model, self._env.data
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        task_rng = np.random.default_rng(seed)
+        self._task_index = int(task_rng.integers(len(self._tasks)))
+        self._env.set_task(self._tasks[self._task_index])
+        obs, _ = self._env.reset()
+        return obs.astype(np.float32), {"success": False, "task_index": self._task_index}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        action = np.clip(np.asarray(action, np.float64), -1.0, 1.0)
+        obs, reward, _, truncated, info = self._env.step(action)
+        info = {"success": bool(info.get("success", False)), "task_index": self._task_index}
+        return obs.astype(np.float32), float(reward), False, bool(truncated), info
+
+    def restore_context(self, context: int | None) -> None:
+        if context is not None and context != self._task_index:
+            self._task_index = context
+            self._env.set_task(self._tasks[context])
+            self._env.reset()

@@ -1,0 +1,62 @@
+"""Every labelled pair of a run, with the segments it refers to, as training tensors."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from seqrank.feedback.closure import Augmentation
+
+
+class LabelStore:
+    def __init__(self) -> None:
+        self.segments: list[np.ndarray] = []  # (H, obs+act) each
+        self.segment_returns: list[float] = []
+        self.first: list[int] = []
+        self.second: list[int] = []
+        self.labels: list[float] = []
+        self.inferred: list[bool] = []
+        self.session: list[int] = []
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def add_session(
+        self,
+        features: np.ndarray,
+        true_returns: np.ndarray,
+        used: tuple[int, ...],
+        augmentation: Augmentation,
+        session: int,
+    ) -> None:
+        """Store the session's segments (pool ids `used`) and its labelled pairs."""
+        offset = {pool_id: len(self.segments) + k for k, pool_id in enumerate(used)}
+        for pool_id in used:
+            self.segments.append(features[pool_id])
+            self.segment_returns.append(float(true_returns[pool_id]))
+        for pair in augmentation.pairs:
+            self.first.append(offset[pair.first])
+            self.second.append(offset[pair.second])
+            self.labels.append(pair.label)
+            self.inferred.append(pair.inferred)
+            self.session.append(session)
+
+    def tensors(
+        self, device: torch.device, last: int | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(segments (S, H, D), first (P,), second (P,), labels (P,)); `last` P pairs only."""
+        rows = slice(-last, None) if last else slice(None)
+        segments = torch.as_tensor(np.stack(self.segments), device=device)
+        first = torch.as_tensor(self.first[rows], dtype=torch.long, device=device)
+        second = torch.as_tensor(self.second[rows], dtype=torch.long, device=device)
+        labels = torch.as_tensor(self.labels[rows], dtype=torch.float32, device=device)
+        return segments, first, second, labels
+
+    def state_dict(self) -> dict[str, Any]:
+        return dict(vars(self))
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        for name, value in state.items():
+            setattr(self, name, value)

@@ -1,0 +1,402 @@
+"""The PEBBLE / MRN training loop (SPEC sections 1 and 7), divided into named phases.
+
+Phases by step: random actions for `seed_steps`; SAC on the state-entropy reward until
+`seed_steps + unsup_steps`; then the first feedback session, reward training, relabelling,
+critic reset and `updates_after_reset` SAC updates; afterwards one SAC update per step and
+a feedback session every `feedback_frequency` steps while budget remains. MRN replaces the
+SAC update by a meta reward step plus a SAC update every `meta_update_frequency` steps.
+
+Every episode and evaluation episode is seeded from the run seed and its index, and all
+other randomness comes from one numpy and one torch generator that are checkpointed, so a
+resumed CPU run reproduces an uninterrupted one exactly.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+import torch
+
+from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer
+from seqrank.config import TrainConfig
+from seqrank.envs import make_env
+from seqrank.feedback.labels import LabelStore
+from seqrank.feedback.session import run_session
+from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
+from seqrank.mrn import PairBatch, meta_reward_step
+from seqrank.pretrain import RunningMeanStd, intrinsic_reward
+from seqrank.reward_model import RewardModel
+from seqrank.runs import RunDir
+from seqrank.sac import SAC, SACSettings
+
+Progress = Callable[[int, dict[str, Any]], None]
+
+
+@dataclass
+class Counters:
+    step: int = 0
+    episode: int = 0
+    sessions: int = 0
+    asked: int = 0
+    answered: int = 0
+    inferred: int = 0
+    inferred_wrong: int = 0
+    last_session_step: int = 0
+    last_checkpoint_step: int = 0
+    evaluations: int = 0
+    last_eval_return: float | None = None
+    last_eval_success: float | None = None
+    train_seconds: float = 0.0
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+def resolve_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device 'cuda' requested but no CUDA device is available; use cpu or auto")
+    return torch.device(name)
+
+
+def episode_seed(run_seed: int, *path: int) -> int:
+    return int(np.random.SeedSequence([run_seed, *path]).generate_state(1)[0])
+
+
+class Trainer:
+    def __init__(self, config: TrainConfig, run: RunDir, progress: Progress | None = None):
+        self.config, self.run_dir, self.progress = config, run, progress
+        self.device = resolve_device(config.device)
+        torch.manual_seed(config.seed)
+        self.env = make_env(config.task, config.seed)
+        self.eval_env = make_env(config.task, config.seed)
+        if config.first_session_step < self.env.episode_length:
+            raise ValueError(
+                f"the first feedback session (step {config.first_session_step}) comes before "
+                f"the first complete episode ({self.env.episode_length} steps); raise "
+                "--seed-steps or --unsup-steps"
+            )
+        obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
+        settings = SACSettings(
+            config.hidden,
+            config.layers,
+            config.actor_lr,
+            config.critic_lr,
+            config.alpha_lr,
+            config.init_temperature,
+            config.discount,
+            config.tau,
+            config.target_update_every,
+        )
+        self.agent = SAC(obs_dim, act_dim, settings, self.device)
+        self.reward_model = RewardModel(
+            config.reward_ensemble,
+            obs_dim + act_dim,
+            config.reward_hidden,
+            config.reward_layers,
+            config.reward_lr,
+            self.device,
+        )
+        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, self.device)
+        self.episodes = EpisodeStore(config.episodes_kept)
+        self.labels = LabelStore()
+        self.teacher = ScriptedTeacher(teacher_preset(config.teacher))
+        self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
+        self.generator = torch.Generator().manual_seed(config.seed)
+        self.entropy_stats = RunningMeanStd()
+        self.counters = Counters()
+        self._current: dict[str, list[Any]] = {"obs": [], "action": [], "reward": []}
+        self._started = time.perf_counter()
+
+    # ---- the loop -------------------------------------------------------------------
+    def train(self) -> dict[str, Any]:
+        config, c = self.config, self.counters
+        obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
+        context = info.get("task_index")
+        tick = time.perf_counter()
+        while c.step < config.steps:
+            action = self._act(obs)
+            next_obs, reward, terminated, truncated, info = self.env.step(action)
+            self._store(obs, action, float(reward), next_obs, terminated)
+            obs, c.step = next_obs, c.step + 1
+            episode_over = terminated or truncated
+            if episode_over:
+                self._end_episode(context)
+                obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
+                context = info.get("task_index")
+            self._learn()
+            if c.step % config.eval_every == 0 or c.step == config.steps:
+                self._evaluate()
+            now = time.perf_counter()
+            c.train_seconds, tick = c.train_seconds + now - tick, now
+            if self.progress is not None and (c.step % 100 == 0 or c.step == config.steps):
+                self.progress(c.step, self._live())
+            if episode_over and c.step - c.last_checkpoint_step >= config.checkpoint_every:
+                self.save_checkpoint()
+        return self._summary()
+
+    # ---- phases ---------------------------------------------------------------------
+    def _act(self, obs: np.ndarray) -> np.ndarray:
+        if self.counters.step < self.config.seed_steps:
+            return self.rng.uniform(-1.0, 1.0, self.env.act_dim).astype(np.float32)
+        action: np.ndarray = self.agent.act(obs, False, self.generator)
+        return action
+
+    def _store(
+        self,
+        obs: np.ndarray,
+        action: np.ndarray,
+        reward: float,
+        next_obs: np.ndarray,
+        terminated: bool,
+    ) -> None:
+        learned = self.reward_model.reward_numpy(obs, action) if self.counters.sessions else 0.0
+        self.replay.add(obs, action, reward, learned, next_obs, terminated)
+        for key, value in (("obs", obs), ("action", action), ("reward", reward)):
+            self._current[key].append(value)
+
+    def _end_episode(self, context: int | None) -> None:
+        cur = self._current
+        self.episodes.add(
+            Episode(
+                np.asarray(cur["obs"], np.float32),
+                np.asarray(cur["action"], np.float32),
+                np.asarray(cur["reward"], np.float64),
+                context,
+            )
+        )
+        self._current = {"obs": [], "action": [], "reward": []}
+        self.counters.episode += 1
+
+    def _learn(self) -> None:
+        config, c = self.config, self.counters
+        if c.step < config.seed_steps:
+            return
+        if c.step < config.first_session_step:
+            self._unsupervised_update()
+            return
+        budget_left = c.asked < config.max_feedback
+        if c.sessions == 0 or (
+            budget_left and c.step - c.last_session_step >= config.feedback_frequency
+        ):
+            self._feedback()
+        if config.backbone == "mrn" and budget_left and c.step % config.meta_update_frequency == 0:
+            self._meta_update()
+        else:
+            self.agent.update(self.replay.sample(config.batch, self.generator), self.generator)
+
+    def _unsupervised_update(self) -> None:
+        batch = self.replay.sample(self.config.batch, self.generator)
+        stored = self.replay.obs[: len(self.replay)]
+        reward = intrinsic_reward(batch.obs, stored, self.config.knn_k, self.entropy_stats)
+        batch = Batch(batch.obs, batch.action, reward, batch.next_obs, batch.not_done)
+        self.agent.update(batch, self.generator)
+
+    def _feedback(self) -> None:
+        config, c = self.config, self.counters
+        first = c.sessions == 0
+        questions = min(config.reward_batch, config.max_feedback - c.asked)
+        margin_returns = self.episodes.recent_returns(10)
+        margin = float(margin_returns.mean()) * config.segment_length / self.env.episode_length
+        outcome = run_session(
+            config,
+            questions,
+            self.episodes,
+            self.reward_model,
+            self.teacher.with_margin(margin),
+            self.labels,
+            c.sessions,
+            self.rng,
+            informative=not first,
+        )
+        stats = outcome.stats
+        c.sessions += 1
+        c.asked += stats.asked
+        c.answered += stats.answered
+        c.inferred += stats.inferred
+        c.inferred_wrong += stats.inferred_wrong or 0
+        c.last_session_step = c.step
+        result = self._train_reward()
+        self.replay.relabel(self.reward_model.reward)
+        if first:
+            self.agent.reset_critic()
+            for _ in range(config.updates_after_reset):
+                self.agent.update(self.replay.sample(config.batch, self.generator), self.generator)
+        self.run_dir.append_metrics(
+            {
+                "step": c.step,
+                "kind": "feedback",
+                "session": c.sessions,
+                "questions": stats.asked,
+                "answered": stats.answered,
+                "equal": stats.equal,
+                "skipped": stats.skipped,
+                "inferred": stats.inferred,
+                "inferred_wrong": stats.inferred_wrong,
+                "asked_wrong": stats.asked_wrong,
+                "pairs_per_question": stats.pairs_per_question,
+                "max_degree": stats.max_degree,
+                "mean_degree": stats.mean_degree,
+                "cyclic_components": stats.cyclic_components,
+                "total_asked": c.asked,
+                "total_inferred": c.inferred,
+                "total_inferred_wrong": c.inferred_wrong,
+                "total_pairs": len(self.labels),
+                "reward_epochs": result.epochs,
+                "reward_loss": result.loss,
+                "reward_train_accuracy": result.accuracy,
+                **self._reward_quality(c.sessions),
+            }
+        )
+
+    def _train_reward(self) -> Any:
+        config = self.config
+        segments, first, second, labels = self.labels.tensors(self.device)
+        return self.reward_model.train(
+            segments,
+            first,
+            second,
+            labels,
+            config.reward_epochs,
+            config.reward_minibatch,
+            config.reward_stop_accuracy,
+            self.generator,
+        )
+
+    def _meta_update(self) -> None:
+        config = self.config
+        batch = self.replay.sample(config.batch, self.generator)
+        segments, first, second, labels = self.labels.tensors(self.device, last=config.reward_batch)
+        obs_dim = self.env.obs_dim
+        a, b = segments[first][:, 0], segments[second][:, 0]
+        pairs = PairBatch(a[:, :obs_dim], a[:, obs_dim:], b[:, :obs_dim], b[:, obs_dim:], labels)
+        loss = meta_reward_step(
+            self.agent, self.reward_model, batch, pairs, self.generator, config.meta_loss_weight
+        )
+        self.counters.extra["meta_outer_loss"] = loss
+        with torch.no_grad():
+            reward = self.reward_model.reward(batch.obs, batch.action)
+        self.agent.update(
+            Batch(batch.obs, batch.action, reward, batch.next_obs, batch.not_done), self.generator
+        )
+        self.replay.relabel(self.reward_model.reward)
+
+    def _reward_quality(self, session: int) -> dict[str, float]:
+        """Held-out accuracy on true preferences and correlation with the true reward."""
+        rng = np.random.default_rng([self.config.seed, 2, session])
+        features, rewards = self.episodes.sample_segments(
+            2 * self.config.heldout_pairs, self.config.segment_length, rng
+        )
+        predicted = self.reward_model.member_returns(features).mean(0)
+        truth = rewards.sum(1)
+        a, b = np.arange(0, len(truth), 2), np.arange(1, len(truth), 2)
+        strict = truth[a] != truth[b]
+        agree = (predicted[a] > predicted[b]) == (truth[a] > truth[b])
+        size = len(self.replay)
+        idx = rng.choice(size, size=min(size, 20_000), replace=False)
+        learned = self.replay.reward[idx, 0].cpu().numpy()
+        true = self.replay.true_reward[idx, 0].cpu().numpy()
+        corr = float(np.corrcoef(learned, true)[0, 1]) if learned.std() and true.std() else 0.0
+        return {
+            "reward_heldout_accuracy": float(agree[strict].mean()) if strict.any() else 1.0,
+            "reward_correlation": corr,
+        }
+
+    def _evaluate(self) -> None:
+        config, c = self.config, self.counters
+        returns, successes = [], []
+        for i in range(config.eval_episodes):
+            obs, _ = self.eval_env.reset(seed=episode_seed(config.seed, 1, c.evaluations, i))
+            total, success, done = 0.0, False, False
+            while not done:
+                action = self.agent.act(obs, True, self.generator)
+                obs, reward, terminated, truncated, info = self.eval_env.step(action)
+                total += float(reward)
+                success = success or bool(info["success"])
+                done = terminated or truncated
+            returns.append(total)
+            successes.append(success)
+        c.evaluations += 1
+        c.last_eval_return = float(np.mean(returns))
+        c.last_eval_success = 100.0 * float(np.mean(successes))
+        self.run_dir.append_metrics(
+            {
+                "step": c.step,
+                "kind": "eval",
+                "eval_return": c.last_eval_return,
+                "eval_return_std": float(np.std(returns)),
+                "eval_success_rate": c.last_eval_success,
+                "total_asked": c.asked,
+                "total_inferred": c.inferred,
+                "alpha": float(self.agent.alpha.detach()),
+                "steps_per_second": c.step / max(c.train_seconds, 1e-9),
+                "wall_seconds": c.train_seconds,
+            }
+        )
+
+    def _live(self) -> dict[str, Any]:
+        c = self.counters
+        return {
+            "eval_return": c.last_eval_return,
+            "asked": c.asked,
+            "inferred": c.inferred,
+            "sessions": c.sessions,
+            "sps": c.step / max(c.train_seconds, 1e-9),
+        }
+
+    def _summary(self) -> dict[str, Any]:
+        c = self.counters
+        evals = [r for r in self.run_dir.read_metrics() if r["kind"] == "eval"]
+        summary = {
+            "task": self.config.task,
+            "scheme": self.config.scheme,
+            "teacher": self.config.teacher,
+            "backbone": self.config.backbone,
+            "steps": c.step,
+            "final_eval_return": c.last_eval_return,
+            "final_eval_success_rate": c.last_eval_success,
+            "best_eval_return": max((r["eval_return"] for r in evals), default=None),
+            "sessions": c.sessions,
+            "asked": c.asked,
+            "answered": c.answered,
+            "inferred": c.inferred,
+            "inferred_wrong": c.inferred_wrong,
+            "wall_seconds": c.train_seconds,
+            "steps_per_second": c.step / max(c.train_seconds, 1e-9),
+            "eval_curve": [(r["step"], r["eval_return"]) for r in evals],
+        }
+        self.run_dir.write_summary(summary)
+        return summary
+
+    # ---- checkpoints ----------------------------------------------------------------
+    def save_checkpoint(self) -> None:
+        c = self.counters
+        c.last_checkpoint_step = c.step
+        self.run_dir.save_checkpoint(
+            {
+                "counters": {f.name: getattr(c, f.name) for f in fields(Counters)},
+                "agent": self.agent.state_dict(),
+                "reward_model": self.reward_model.state_dict(),
+                "replay": self.replay.state_dict(),
+                "episodes": self.episodes.state_dict(),
+                "labels": self.labels.state_dict(),
+                "entropy_stats": self.entropy_stats.state_dict(),
+                "rng": self.rng.bit_generator.state,
+                "generator": self.generator.get_state(),
+            }
+        )
+
+    def load_checkpoint(self, state: dict[str, Any]) -> None:
+        self.counters = Counters(**state["counters"])
+        self.agent.load_state_dict(state["agent"])
+        self.reward_model.load_state_dict(state["reward_model"])
+        self.replay.load_state_dict(state["replay"])
+        self.episodes.load_state_dict(state["episodes"])
+        self.labels.load_state_dict(state["labels"])
+        self.entropy_stats.load_state_dict(state["entropy_stats"])
+        self.rng.bit_generator.state = state["rng"]
+        self.generator.set_state(state["generator"])
+        self.run_dir.truncate_metrics(self.counters.step)

@@ -1,0 +1,140 @@
+"""Reward ensemble and its Bradley-Terry training (SPEC section 5).
+
+The members' weights are stacked, so the whole ensemble is one batched matmul per layer,
+and each member can see its own minibatch. Labels are soft targets (1, 0 or 0.5 for
+equal), so hard, soft and equal labels share one loss path.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+
+class EnsembleMLP(nn.Module):
+    """`members` independent MLPs: LeakyReLU hidden layers, tanh scalar output."""
+
+    def __init__(self, members: int, inputs: int, hidden: int, layers: int):
+        super().__init__()
+        sizes = [inputs] + [hidden] * layers + [1]
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for a, b in itertools.pairwise(sizes):
+            bound = 1 / math.sqrt(a)  # the default nn.Linear initialisation, per member
+            self.weights.append(nn.Parameter(torch.empty(members, a, b).uniform_(-bound, bound)))
+            self.biases.append(nn.Parameter(torch.empty(members, 1, b).uniform_(-bound, bound)))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """x: (members, N, inputs) or (N, inputs) shared by all; returns (members, N, 1)."""
+        if x.dim() == 2:
+            x = x.unsqueeze(0).expand(len(self.weights[0]), -1, -1)
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            x = torch.baddbmm(b, x, w)
+            x = torch.tanh(x) if i == last else F.leaky_relu(x)
+        return x
+
+
+@dataclass(frozen=True)
+class RewardTrainResult:
+    epochs: int
+    loss: float
+    accuracy: float
+
+
+class RewardModel:
+    def __init__(
+        self, members: int, inputs: int, hidden: int, layers: int, lr: float, device: torch.device
+    ):
+        self.device = device
+        self.net = EnsembleMLP(members, inputs, hidden, layers).to(device)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=lr)
+
+    @property
+    def members(self) -> int:
+        return len(self.net.weights[0])
+
+    def reward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        """The agent's reward: the ensemble mean, shape (N, 1)."""
+        return self.net(torch.cat([obs, action], dim=-1)).mean(0)
+
+    @torch.no_grad()
+    def reward_numpy(self, obs: np.ndarray, action: np.ndarray) -> float:
+        features = torch.as_tensor(np.concatenate([obs, action]), device=self.device)
+        return float(self.net(features[None]).mean())
+
+    def segment_returns(self, segments: torch.Tensor) -> torch.Tensor:
+        """segments: (N, H, D) shared, or (members, N, H, D); returns (members, N)."""
+        n, horizon, features = segments.shape[-3:]
+        flat = segments.reshape(*segments.shape[:-3], n * horizon, features)
+        return self.net(flat).reshape(self.members, n, horizon).sum(-1)
+
+    @torch.no_grad()
+    def member_returns(self, segments: np.ndarray, chunk: int = 1024) -> np.ndarray:
+        """Per-member predicted returns (members, N) of segment features (N, H, D)."""
+        parts = []
+        for start in range(0, len(segments), chunk):
+            batch = torch.as_tensor(segments[start : start + chunk], device=self.device)
+            parts.append(self.segment_returns(batch).cpu().numpy())
+        return np.concatenate(parts, axis=1)
+
+    def train(
+        self,
+        segments: torch.Tensor,
+        first: torch.Tensor,
+        second: torch.Tensor,
+        labels: torch.Tensor,
+        max_epochs: int,
+        minibatch: int,
+        stop_accuracy: float,
+        generator: torch.Generator,
+    ) -> RewardTrainResult:
+        """Bradley-Terry on segment sums; each member its own shuffle of all pairs.
+
+        labels: probability that `first` is preferred. Stops early once the mean train
+        accuracy over hard labels exceeds `stop_accuracy`.
+        """
+        pairs = len(labels)
+        loss_value, accuracy, epochs = 0.0, 0.0, 0
+        for epochs in range(1, max_epochs + 1):  # noqa: B007 (the count is returned)
+            order = torch.stack(
+                [torch.randperm(pairs, generator=generator) for _ in range(self.members)]
+            ).to(self.device)
+            losses, correct, counted = [], 0.0, 0.0
+            for start in range(0, pairs, minibatch):
+                idx = order[:, start : start + minibatch]  # (members, B)
+                loss, hits, hard = self._step(segments, first[idx], second[idx], labels[idx])
+                losses.append(loss)
+                correct, counted = correct + hits, counted + hard
+            loss_value = float(np.mean(losses))
+            accuracy = correct / counted if counted else 1.0
+            if accuracy > stop_accuracy:
+                break
+        return RewardTrainResult(epochs, loss_value, accuracy)
+
+    def _step(
+        self, segments: torch.Tensor, first: torch.Tensor, second: torch.Tensor, y: torch.Tensor
+    ) -> tuple[float, float, float]:
+        logits = self.segment_returns(segments[first]) - self.segment_returns(segments[second])
+        loss = F.binary_cross_entropy_with_logits(logits, y, reduction="none").mean(1).sum()
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        with torch.no_grad():
+            hard = y != 0.5
+            hits = ((logits > 0) == (y > 0.5)) & hard
+        return float(loss.detach()) / self.members, float(hits.sum()), float(hard.sum())
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"net": self.net.state_dict(), "optimizer": self.optimizer.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.net.load_state_dict(state["net"])
+        self.optimizer.load_state_dict(state["optimizer"])

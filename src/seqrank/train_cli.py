@@ -1,0 +1,170 @@
+"""`seqrank train`: every TrainConfig field is an option; --resume continues a run."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from seqrank.config import SCALES, TrainConfig, resolve_config
+from seqrank.errors import UsageError
+from seqrank.runs import RunDir
+
+# Options that name the run rather than tune it.
+IDENTITY = ("task", "scheme", "teacher", "backbone", "seed", "device")
+_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
+
+
+def add_train_parser(commands: Any) -> None:
+    train = commands.add_parser(
+        "train",
+        help="train an agent from preferences (PEBBLE or MRN)",
+        description="Train SAC from a reward learned on preferences. Defaults: walker_walk, "
+        "sequential scheme, oracle teacher, PEBBLE, the paper's Table 2 settings on a GPU "
+        "and the small preset on a CPU (--scale auto). Every setting below overrides.",
+    )
+    train.add_argument(
+        "--scale",
+        choices=("auto", *SCALES),
+        default=argparse.SUPPRESS,
+        help="paper: Table 2 sizes; small: a 2-core CPU preset; auto (default): paper on "
+        "CUDA, small on CPU",
+    )
+    train.add_argument(
+        "--out",
+        type=Path,
+        default=argparse.SUPPRESS,
+        help="run directory (default: seqrank-out/runs/<task>_<scheme>_...)",
+    )
+    train.add_argument(
+        "--resume",
+        type=Path,
+        metavar="RUN_DIR",
+        default=argparse.SUPPRESS,
+        help="continue a killed run from its last checkpoint",
+    )
+    train.add_argument("--quiet", action="store_true", help="no progress bar")
+    for f in fields(TrainConfig):
+        if f.name == "scale":
+            continue
+        train.add_argument(
+            f"--{f.name.replace('_', '-')}",
+            type=_TYPES[str(f.type)],
+            default=argparse.SUPPRESS,
+            metavar=str(f.type).upper(),
+            help=f"default: {f.default} (or the preset's)",
+        )
+
+
+def run_train(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.loop import Trainer, resolve_device  # torch loads slowly: only when training
+
+    try:
+        trainer, config, run = _prepare(args, err, Trainer, resolve_device)
+    except (ValueError, FileNotFoundError, FileExistsError) as problem:
+        raise UsageError(str(problem)) from None
+    summary = _train_with_progress(trainer, config, err, args.quiet)
+    _print_summary(out, summary, run)
+    return 0
+
+
+def _prepare(args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any) -> Any:
+    """Build the trainer of a new or resumed run; bad input raises ValueError."""
+    given = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
+    if hasattr(args, "resume"):
+        if given or hasattr(args, "out") or hasattr(args, "scale"):
+            changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale"
+            raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
+        run = RunDir.open(args.resume)
+        config = run.read_config()
+        trainer = trainer_cls(config, run)
+        state = run.load_checkpoint()
+        if state is not None:
+            trainer.load_checkpoint(state)
+        err.print(f"resuming {run.path} at step {trainer.counters.step}")
+        return trainer, config, run
+    scale = getattr(args, "scale", "auto")
+    device = resolve_device(given.get("device", "auto"))
+    if scale == "auto":
+        scale = "paper" if device.type == "cuda" else "small"
+    task = given.pop("task", TrainConfig.task)
+    config = resolve_config(task, scale, given)
+    path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
+    run = RunDir.create(path, config, str(device))
+    trainer = trainer_cls(config, run)
+    err.print(f"run directory: {run.path} ({scale} preset, device {device})")
+    return trainer, config, run
+
+
+def _run_name(config: TrainConfig) -> str:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    task = config.task.replace(":", "-")
+    return f"{task}_{config.scheme}_{config.teacher}_{config.backbone}_seed{config.seed}_{stamp}"
+
+
+def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet: bool) -> Any:
+    if quiet:
+        return trainer.train()
+    columns = (
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[live]}"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=err) as progress:
+        task = progress.add_task(
+            config.task, total=config.steps, completed=trainer.counters.step, live=""
+        )
+
+        def report(step: int, live: dict[str, Any]) -> None:
+            ret = live["eval_return"]
+            text = (
+                f"return {'-' if ret is None else f'{ret:.1f}'} | asked {live['asked']} "
+                f"inferred {live['inferred']} | {live['sps']:.0f} steps/s"
+            )
+            progress.update(task, completed=step, live=text)
+
+        trainer.progress = report
+        return trainer.train()
+
+
+def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
+    table = Table(
+        title=f"{summary['task']} / {summary['scheme']} / {summary['teacher']} / "
+        f"{summary['backbone']}",
+        show_header=False,
+    )
+    table.add_column("what")
+    table.add_column("value", justify="right")
+    final, best = summary["final_eval_return"], summary["best_eval_return"]
+    rows = [
+        ("steps", f"{summary['steps']}"),
+        ("final eval return", "-" if final is None else f"{final:.1f}"),
+        ("best eval return", "-" if best is None else f"{best:.1f}"),
+        ("final success rate", f"{summary['final_eval_success_rate']:.0f}%"),
+        ("feedback sessions", f"{summary['sessions']}"),
+        ("questions asked", f"{summary['asked']}"),
+        ("pairs inferred (wrong)", f"{summary['inferred']} ({summary['inferred_wrong']})"),
+        ("wall time", f"{summary['wall_seconds'] / 60:.1f} min"),
+        ("steps per second", f"{summary['steps_per_second']:.0f}"),
+    ]
+    for name, value in rows:
+        table.add_row(name, value)
+    out.print(table)
+    curve = summary["eval_curve"]
+    if curve:
+        out.print("evaluation return by step:")
+        top = max(max(r for _, r in curve), 1e-9)
+        for step, value in curve:
+            out.print(f"  {step:>9,}  {value:8.1f}  {'#' * int(40 * max(value, 0) / top)}")
+        from seqrank.plots import plot_curve
+
+        plot_curve(curve, run.path / "returns.png", f"{summary['task']} ({summary['scheme']})")
+    out.print(f"run directory: {run.path}")
