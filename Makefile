@@ -10,13 +10,15 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
+	# The CPU build of torch that lies on disk here; any other resolves to a multi-GB CUDA build.
+	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
 install: $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/seqrank simulate
+	$(VENV)/bin/seqrank train
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests

@@ -118,7 +118,7 @@ def test_simulate_json_on_stdout(tmp_path, capsys):
         ),
         (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
         (["simulate", "--sessions", "1"], "1 is too small; it must be >= 2"),
-        (["train"], "invalid choice: 'train'"),
+        (["fly"], "invalid choice: 'fly'"),
     ],
 )
 def test_bad_arguments_give_one_clear_line_and_exit_2(args, message):

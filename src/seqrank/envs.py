@@ -216,6 +216,8 @@ class MetaWorldEnv(SimEnv):
         self._task_index = int(task_rng.integers(len(self._tasks)))
         self._env.set_task(self._tasks[self._task_index])
         obs, _ = self._env.reset()
+        mujoco.mj_forward(self._model, self._data)  # reset leaves derived quantities stale
+        self._place_goal_sites()
         return obs.astype(np.float32), {"success": False, "task_index": self._task_index}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -223,6 +225,15 @@ class MetaWorldEnv(SimEnv):
         obs, reward, _, truncated, info = self._env.step(action)
         info = {"success": bool(info.get("success", False)), "task_index": self._task_index}
         return obs.astype(np.float32), float(reward), False, bool(truncated), info
+
+    def set_state(self, state: np.ndarray) -> None:
+        super().set_state(state)
+        self._place_goal_sites()
+
+    def _place_goal_sites(self) -> None:
+        """Put goal markers where step() puts them, so every frame shows them alike."""
+        for site in self._env._target_site_config:
+            self._env._set_pos_site(*site)
 
     def restore_context(self, context: int | None) -> None:
         if context is not None and context != self._task_index:

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer
-from seqrank.config import TrainConfig
+from seqrank.config import DEVICES, TrainConfig
 from seqrank.envs import make_env
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import run_session
@@ -55,6 +55,8 @@ class Counters:
 
 
 def resolve_device(name: str) -> torch.device:
+    if name not in DEVICES:
+        raise ValueError(f"unknown device {name!r}; accepted: {', '.join(DEVICES)}")
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if name == "cuda" and not torch.cuda.is_available():

@@ -1,0 +1,106 @@
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from seqrank.cli import main
+
+TINY = [
+    "--task",
+    "dmc:cartpole_swingup",
+    "--steps",
+    "2200",
+    "--seed-steps",
+    "300",
+    "--unsup-steps",
+    "900",
+    "--feedback-frequency",
+    "500",
+    "--max-feedback",
+    "20",
+    "--reward-batch",
+    "10",
+    "--hidden",
+    "32",
+    "--batch",
+    "32",
+    "--reward-hidden",
+    "32",
+    "--reward-epochs",
+    "5",
+    "--eval-every",
+    "1100",
+    "--eval-episodes",
+    "1",
+    "--checkpoint-every",
+    "1000",
+    "--heldout-pairs",
+    "50",
+    "--device",
+    "cpu",
+]
+
+
+def test_train_writes_a_self_describing_run_directory(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", *TINY, "--out", str(out), "--quiet"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["task"] == "dmc:cartpole_swingup" and config["hidden"] == 32
+    assert config["scale"] == "small" and config["reward_layers"] == 3  # preset values kept
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["seed"] == 0 and meta["packages"]["torch"] and "git_revision" in meta
+    rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    assert {r["kind"] for r in rows} == {"feedback", "eval"}
+    assert (out / "checkpoint.pt").exists() and (out / "returns.png").exists()
+    printed = capsys.readouterr().out
+    assert "questions asked" in printed and "evaluation return by step" in printed
+    # a finished run resumes from its last checkpoint and ends with the same summary
+    summary = json.loads((out / "summary.json").read_text())
+    assert main(["train", "--resume", str(out), "--quiet"]) == 0
+    again = json.loads((out / "summary.json").read_text())
+    assert again["eval_curve"] == summary["eval_curve"] and again["asked"] == 20
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "seqrank", "train", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--task", "walker"], "unknown task 'walker'; accepted: walker_walk, cheetah_run"),
+        (["--scheme", "tree"], "unknown scheme 'tree'; accepted: pairwise, sequential, root"),
+        (["--teacher", "perfect"], "unknown teacher 'perfect'; accepted: oracle, mistake"),
+        (["--backbone", "ppo"], "unknown backbone 'ppo'; accepted: pebble, mrn"),
+        (["--selection", "best"], "unknown selection 'best'; accepted: uniform"),
+        (["--scale", "huge"], "invalid choice: 'huge'"),
+        (["--device", "tpu"], "unknown device 'tpu'; accepted: auto, cpu, cuda"),
+        (["--max-feedback", "100000", "--reward-batch", "10"], "impossible budget"),
+        (["--reward-batch", "500", "--max-feedback", "100"], "exceeds max_feedback"),
+        (["--steps", "-5"], "steps must be positive, got -5"),
+        (["--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
+        (["--resume", "/nonexistent/run"], "no run directory at /nonexistent/run"),
+    ],
+)
+def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
+    pinned = "--device" in args or "--resume" in args
+    result = run_cli(*args) if pinned else run_cli(*args, "--device", "cpu")
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_resume_refuses_new_settings_and_create_refuses_a_used_directory(tmp_path):
+    (tmp_path / "config.json").write_text("{}")
+    result = run_cli("--resume", str(tmp_path), "--steps", "10")
+    assert result.returncode == 2 and "drop --steps" in result.stderr
+    result = run_cli("--out", str(tmp_path), "--device", "cpu")
+    assert result.returncode == 2 and "is not empty; resume it with --resume" in result.stderr

@@ -1,0 +1,138 @@
+"""End-to-end training on a tiny configuration (CPU, seconds)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from seqrank.config import resolve_config
+from seqrank.loop import Trainer
+from seqrank.runs import RunDir
+
+TIMING = {"steps_per_second", "wall_seconds"}
+
+
+def tiny_config(**overrides):
+    values = dict(
+        steps=3200,
+        seed_steps=300,
+        unsup_steps=900,
+        feedback_frequency=500,
+        max_feedback=30,
+        reward_batch=10,
+        hidden=32,
+        layers=2,
+        batch=32,
+        reward_hidden=32,
+        reward_epochs=5,
+        eval_every=1600,
+        eval_episodes=1,
+        checkpoint_every=1000,
+        heldout_pairs=50,
+        device="cpu",
+        seed=3,
+    )
+    values.update(overrides)
+    return resolve_config("dmc:cartpole_swingup", "small", values)
+
+
+def run(path: Path, config, stop_at: int | None = None) -> Trainer:
+    trainer = Trainer(config, RunDir.create(path, config, "cpu"))
+    if stop_at is not None:
+
+        def kill(step, live):
+            if step >= stop_at:
+                raise KeyboardInterrupt
+
+        trainer.progress = kill
+    trainer.train()
+    return trainer
+
+
+def without_timing(rows):
+    return [{k: v for k, v in row.items() if k not in TIMING} for row in rows]
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    path = tmp_path_factory.mktemp("runs") / "full"
+    return run(path, tiny_config())
+
+
+def test_smoke_run_gets_through_every_phase(finished):
+    rows = finished.run_dir.read_metrics()
+    feedback = [r for r in rows if r["kind"] == "feedback"]
+    evals = [r for r in rows if r["kind"] == "eval"]
+    assert [r["step"] for r in feedback] == [1200, 1700, 2200]
+    assert [r["step"] for r in evals] == [1600, 3200]
+    assert feedback[-1]["total_asked"] == 30
+    assert finished.entropy_stats.count > 0  # pre-training used the state-entropy reward
+    assert finished.agent.updates >= 3200 - 300
+    assert all(0 <= r["reward_heldout_accuracy"] <= 1 for r in feedback)
+    assert feedback[0]["pairs_per_question"] >= 1
+    summary = (finished.run_dir.path / "summary.json").read_text()
+    assert '"asked": 30' in summary
+
+
+def test_same_seed_same_metrics(finished, tmp_path):
+    again = run(tmp_path / "again", tiny_config())
+    assert without_timing(again.run_dir.read_metrics()) == without_timing(
+        finished.run_dir.read_metrics()
+    )
+    for a, b in zip(again.agent.actor.parameters(), finished.agent.actor.parameters(), strict=True):
+        assert torch.equal(a, b)
+
+
+def test_different_seed_different_metrics(finished, tmp_path):
+    other = run(tmp_path / "other", tiny_config(seed=4))
+    assert without_timing(other.run_dir.read_metrics()) != without_timing(
+        finished.run_dir.read_metrics()
+    )
+
+
+def test_resumed_run_ends_with_the_same_numbers(finished, tmp_path):
+    config = tiny_config()
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path / "killed", config, stop_at=2500)
+    directory = RunDir.open(tmp_path / "killed")
+    state = directory.load_checkpoint()
+    assert state is not None and state["counters"]["step"] == 2000
+    resumed = Trainer(directory.read_config(), directory)
+    resumed.load_checkpoint(state)
+    resumed.train()
+    assert without_timing(directory.read_metrics()) == without_timing(
+        finished.run_dir.read_metrics()
+    )
+    for a, b in zip(
+        resumed.agent.critic.parameters(), finished.agent.critic.parameters(), strict=True
+    ):
+        assert torch.equal(a, b)
+
+
+def test_mrn_backbone_with_equal_labels(tmp_path):
+    trainer = run(
+        tmp_path / "mrn",
+        tiny_config(
+            backbone="mrn",
+            teacher="equal",
+            meta_update_frequency=100,
+            steps=2400,
+            max_feedback=20,
+            eval_every=2400,
+        ),
+    )
+    assert "meta_outer_loss" in trainer.counters.extra
+    assert trainer.counters.asked == 20
+
+
+@pytest.mark.parametrize("scheme", ["pairwise", "root", "ranked"])
+def test_every_scheme_trains_with_informative_selection(tmp_path, scheme):
+    trainer = run(
+        tmp_path / scheme,
+        tiny_config(
+            scheme=scheme, selection="entropy", steps=2000, max_feedback=20, eval_every=2000
+        ),
+    )
+    assert trainer.counters.asked == 20 and trainer.counters.sessions == 2
