@@ -136,11 +136,11 @@ def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet:
 
 
 def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
-    table = Table(
-        title=f"{summary['task']} / {summary['scheme']} / {summary['teacher']} / "
-        f"{summary['backbone']}",
-        show_header=False,
+    out.print(
+        f"[bold]{summary['task']}[/bold]: {summary['scheme']} scheme, {summary['teacher']} "
+        f"teacher, {summary['backbone']}"
     )
+    table = Table(show_header=False)
     table.add_column("what")
     table.add_column("value", justify="right")
     final, best = summary["final_eval_return"], summary["best_eval_return"]
