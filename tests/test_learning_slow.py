@@ -27,15 +27,28 @@ def random_return(task: str, episodes: int) -> float:
 
 
 @pytest.mark.slow
-def test_sequential_preferences_teach_cartpole_to_balance(tmp_path):
-    task = "dmc:cartpole_balance"
+def test_sequential_preferences_teach_walker_to_move(tmp_path):
+    task = "walker_walk"
     config = resolve_config(
-        task, "small",
-        dict(steps=16_000, seed_steps=1_000, unsup_steps=2_000, feedback_frequency=2_000,
-             max_feedback=60, reward_batch=10, eval_every=8_000, eval_episodes=5,
-             checkpoint_every=100_000, device="cpu", scheme="sequential"),
+        task,
+        "small",
+        dict(
+            steps=20_000,
+            unsup_steps=4_000,
+            feedback_frequency=5_000,
+            max_feedback=60,
+            reward_batch=20,
+            eval_every=10_000,
+            eval_episodes=5,
+            checkpoint_every=100_000,
+            device="cpu",
+            scheme="sequential",
+        ),
     )
     summary = Trainer(config, RunDir.create(tmp_path / "run", config, "cpu")).train()
-    baseline = random_return(task, 5)
+    baseline = random_return(task, 5)  # about 31
     assert summary["asked"] == 60
-    assert summary["final_eval_return"] > max(2 * baseline, baseline + 300), (summary, baseline)
+    # single-seed curves are noisy at 20K steps: the best evaluation must be far above random
+    # and the last one still clearly above it
+    assert summary["best_eval_return"] > 3 * baseline, (summary, baseline)
+    assert summary["final_eval_return"] > 1.5 * baseline, (summary, baseline)

@@ -136,3 +136,19 @@ def test_every_scheme_trains_with_informative_selection(tmp_path, scheme):
         ),
     )
     assert trainer.counters.asked == 20 and trainer.counters.sessions == 2
+
+
+def test_recorded_states_let_a_labelled_segment_be_rendered_again(tmp_path):
+    trainer = run(
+        tmp_path / "states",
+        tiny_config(record_states=1, steps=1700, max_feedback=10, eval_every=1700),
+    )
+    labels = trainer.labels
+    assert len(labels.segment_states) == len(labels.segments) > 0
+    states = labels.segment_states[0]
+    assert states is not None and states.shape[0] == trainer.config.segment_length
+    frames = trainer.env.render_states(states, labels.segment_contexts[0], 32, 32)
+    assert frames.shape == (trainer.config.segment_length, 32, 32, 3)
+    assert not (frames[0] == frames[-1]).all()  # the clip moves
+    trainer.env.set_state(states[7])
+    assert (trainer.env.get_state() == states[7]).all()

@@ -107,6 +107,16 @@ class Episode:
     states: np.ndarray | None = None  # (T, state_dim) physics states, when recorded
 
 
+@dataclass(frozen=True)
+class Segments:
+    """Segments cut from episodes: what the reward model sees, the truth, and provenance."""
+
+    features: np.ndarray  # (N, H, obs + act)
+    rewards: np.ndarray  # (N, H) true per-step rewards
+    states: list[np.ndarray | None]  # (H, state_dim) physics states when recorded
+    contexts: list[int | None]  # Meta-World task index, to re-render
+
+
 class EpisodeStore:
     """The last `keep` complete episodes; feedback segments are cut from them."""
 
@@ -122,14 +132,11 @@ class EpisodeStore:
     def recent_returns(self, count: int) -> np.ndarray:
         return np.array([e.reward.sum() for e in list(self.episodes)[-count:]])
 
-    def sample_segments(
-        self, count: int, length: int, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """`count` segments (uniform episode, uniform start): features (N, H, obs+act) and
-        true per-step rewards (N, H)."""
+    def sample_segments(self, count: int, length: int, rng: np.random.Generator) -> Segments:
+        """`count` segments cut at a uniform episode and a uniform start."""
         episodes = list(self.episodes)
         which = rng.integers(len(episodes), size=count)
-        features, rewards = [], []
+        features, rewards, states, contexts = [], [], [], []
         for e in which:
             episode = episodes[e]
             start = int(rng.integers(len(episode.reward) - length + 1))
@@ -138,7 +145,9 @@ class EpisodeStore:
                 np.concatenate([episode.obs[start:stop], episode.action[start:stop]], 1)
             )
             rewards.append(episode.reward[start:stop])
-        return np.stack(features).astype(np.float32), np.stack(rewards)
+            states.append(None if episode.states is None else episode.states[start:stop])
+            contexts.append(episode.context)
+        return Segments(np.stack(features).astype(np.float32), np.stack(rewards), states, contexts)
 
     def state_dict(self) -> dict[str, Any]:
         return {"keep": self.episodes.maxlen, "episodes": list(self.episodes)}

@@ -55,6 +55,7 @@ class TrainConfig:
     selection: str = "uniform"
     oversample: int = 10
     episodes_kept: int = 100
+    record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # reward model (SPEC section 5)
     reward_ensemble: int = 3
     reward_hidden: int = 256
@@ -167,10 +168,12 @@ def validate(config: TrainConfig) -> None:
             raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
     positive = [f.name for f in fields(config) if f.type in ("int", "float")]
     for name in positive:
-        if name in ("seed", "unsup_steps", "updates_after_reset"):
+        if name in ("seed", "unsup_steps", "updates_after_reset", "record_states"):
             continue
         if getattr(config, name) <= 0:
             raise ValueError(f"{name} must be positive, got {getattr(config, name)}")
+    if config.record_states not in (0, 1):
+        raise ValueError(f"record_states must be 0 or 1, got {config.record_states}")
     if config.reward_batch > config.max_feedback:
         raise ValueError(
             f"reward_batch {config.reward_batch} exceeds max_feedback {config.max_feedback}: "

@@ -64,6 +64,10 @@ def resolve_device(name: str) -> torch.device:
     return torch.device(name)
 
 
+def _empty_episode() -> dict[str, list[Any]]:
+    return {"obs": [], "action": [], "reward": [], "states": []}
+
+
 def episode_seed(run_seed: int, *path: int) -> int:
     return int(np.random.SeedSequence([run_seed, *path]).generate_state(1)[0])
 
@@ -110,7 +114,7 @@ class Trainer:
         self.generator = torch.Generator().manual_seed(config.seed)
         self.entropy_stats = RunningMeanStd()
         self.counters = Counters()
-        self._current: dict[str, list[Any]] = {"obs": [], "action": [], "reward": []}
+        self._current = _empty_episode()
         self._started = time.perf_counter()
 
     # ---- the loop -------------------------------------------------------------------
@@ -121,6 +125,8 @@ class Trainer:
         tick = time.perf_counter()
         while c.step < config.steps:
             action = self._act(obs)
+            if config.record_states:
+                self._current["states"].append(self.env.get_state())
             next_obs, reward, terminated, truncated, info = self.env.step(action)
             self._store(obs, action, float(reward), next_obs, terminated)
             obs, c.step = next_obs, c.step + 1
@@ -168,9 +174,10 @@ class Trainer:
                 np.asarray(cur["action"], np.float32),
                 np.asarray(cur["reward"], np.float64),
                 context,
+                np.asarray(cur["states"]) if cur["states"] else None,
             )
         )
-        self._current = {"obs": [], "action": [], "reward": []}
+        self._current = _empty_episode()
         self.counters.episode += 1
 
     def _learn(self) -> None:
@@ -289,9 +296,10 @@ class Trainer:
     def _reward_quality(self, session: int) -> dict[str, float]:
         """Held-out accuracy on true preferences and correlation with the true reward."""
         rng = np.random.default_rng([self.config.seed, 2, session])
-        features, rewards = self.episodes.sample_segments(
+        sample = self.episodes.sample_segments(
             2 * self.config.heldout_pairs, self.config.segment_length, rng
         )
+        features, rewards = sample.features, sample.rewards
         predicted = self.reward_model.member_returns(features).mean(0)
         truth = rewards.sum(1)
         a, b = np.arange(0, len(truth), 2), np.arange(1, len(truth), 2)

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from seqrank.buffer import Segments
 from seqrank.feedback.closure import Augmentation
 
 
@@ -19,13 +20,16 @@ class LabelStore:
         self.labels: list[float] = []
         self.inferred: list[bool] = []
         self.session: list[int] = []
+        # provenance, to re-render a segment: physics states (when recorded) and task index
+        self.segment_states: list[np.ndarray | None] = []
+        self.segment_contexts: list[int | None] = []
 
     def __len__(self) -> int:
         return len(self.labels)
 
     def add_session(
         self,
-        features: np.ndarray,
+        segments: Segments,
         true_returns: np.ndarray,
         used: tuple[int, ...],
         augmentation: Augmentation,
@@ -34,8 +38,10 @@ class LabelStore:
         """Store the session's segments (pool ids `used`) and its labelled pairs."""
         offset = {pool_id: len(self.segments) + k for k, pool_id in enumerate(used)}
         for pool_id in used:
-            self.segments.append(features[pool_id])
+            self.segments.append(segments.features[pool_id])
             self.segment_returns.append(float(true_returns[pool_id]))
+            self.segment_states.append(segments.states[pool_id])
+            self.segment_contexts.append(segments.contexts[pool_id])
         for pair in augmentation.pairs:
             self.first.append(offset[pair.first])
             self.second.append(offset[pair.second])

@@ -42,7 +42,8 @@ def run_session(
     needed = segments_needed(config.scheme, questions)
     use_model = informative and config.selection != "uniform"
     pool = needed * (config.oversample if use_model else 1)
-    features, rewards = episodes.sample_segments(pool, config.segment_length, rng)
+    segments = episodes.sample_segments(pool, config.segment_length, rng)
+    features, rewards = segments.features, segments.rewards
     true_returns = rewards.sum(axis=1)
     member_returns = reward_model.member_returns(features) if use_model else None
     chooser = make_chooser(config.selection if use_model else "uniform", member_returns)
@@ -52,5 +53,5 @@ def run_session(
 
     record = get_scheme(config.scheme)(pool, questions, ask, rng, chooser)
     augmentation = augment(record.answers, true_returns.tolist())
-    labels.add_session(features, true_returns, record.segments, augmentation, session)
+    labels.add_session(segments, true_returns, record.segments, augmentation, session)
     return SessionOutcome(augmentation.stats, len(record.segments))
