@@ -139,3 +139,29 @@ def test_mrn_meta_step_changes_the_reward_and_lowers_its_outer_loss():
         torch.equal(a, b) for a, b in zip(critic_before, agent.critic.parameters(), strict=True)
     )
     assert all(p.grad is None for p in agent.critic.parameters())
+
+
+def test_label_store_keeps_provenance_and_gives_recent_pairs_with_their_segments():
+    from seqrank.buffer import Segments
+    from seqrank.feedback.closure import augment
+    from seqrank.feedback.labels import LabelStore
+    from seqrank.types import Answer, AnsweredQuestion, Question
+
+    store = LabelStore()
+    for session in range(2):
+        features = np.arange(4 * 2 * 3, dtype=np.float32).reshape(4, 2, 3) + 100 * session
+        segments = Segments(features, np.ones((4, 2)), [None] * 4, [session] * 4)
+        answers = [
+            AnsweredQuestion(Question(0, 0, 1, True), Answer.FIRST),
+            AnsweredQuestion(Question(1, 1, 2, True), Answer.FIRST),
+        ]
+        store.add_session(segments, np.ones(4), (0, 1, 2), augment(answers), session)
+    assert len(store.segments) == 6 and len(store) == 6  # 2 asked + 1 inferred per session
+    assert store.segment_contexts == [0, 0, 0, 1, 1, 1]
+    segments, first, second, labels = store.tensors(CPU, last=3)
+    assert torch.equal(segments[second[0]], torch.as_tensor(store.segments[store.second[-3]]))
+    assert segments.shape == (3, 2, 3)  # only the second session's segments
+    assert torch.equal(segments[first[0]], torch.as_tensor(store.segments[store.first[-3]]))
+    assert labels.tolist() == store.labels[-3:]
+    all_segments, all_first, _, _ = store.tensors(CPU)
+    assert all_segments.shape[0] == 6 and len(all_first) == 6

@@ -130,6 +130,9 @@ def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet:
                 f"inferred {live['inferred']} | {live['sps']:.0f} steps/s"
             )
             progress.update(task, completed=step, live=text)
+            if not err.is_terminal and step % config.eval_every == 0:
+                # piped output (logs, CI) gets no live bar: print a line per evaluation
+                err.print(f"step {step:,}/{config.steps:,} | {text}", highlight=False)
 
         trainer.progress = report
         return trainer.train()

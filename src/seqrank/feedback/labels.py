@@ -52,13 +52,18 @@ class LabelStore:
     def tensors(
         self, device: torch.device, last: int | None = None
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(segments (S, H, D), first (P,), second (P,), labels (P,)); `last` P pairs only."""
+        """(segments (S, H, D), first (P,), second (P,), labels (P,)).
+
+        With `last`, only the most recent `last` pairs and just the segments they use.
+        """
         rows = slice(-last, None) if last else slice(None)
-        segments = torch.as_tensor(np.stack(self.segments), device=device)
-        first = torch.as_tensor(self.first[rows], dtype=torch.long, device=device)
-        second = torch.as_tensor(self.second[rows], dtype=torch.long, device=device)
+        first, second = np.asarray(self.first[rows]), np.asarray(self.second[rows])
+        used, inverse = np.unique(np.concatenate([first, second]), return_inverse=True)
+        segments = torch.as_tensor(np.stack([self.segments[i] for i in used]), device=device)
+        first_t = torch.as_tensor(inverse[: len(first)], dtype=torch.long, device=device)
+        second_t = torch.as_tensor(inverse[len(first) :], dtype=torch.long, device=device)
         labels = torch.as_tensor(self.labels[rows], dtype=torch.float32, device=device)
-        return segments, first, second, labels
+        return segments, first_t, second_t, labels
 
     def state_dict(self) -> dict[str, Any]:
         return dict(vars(self))
