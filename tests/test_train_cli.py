@@ -53,7 +53,10 @@ def test_train_writes_a_self_describing_run_directory(tmp_path, capsys):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["seed"] == 0 and meta["packages"]["torch"] and "git_revision" in meta
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
-    assert {r["kind"] for r in rows} == {"feedback", "eval"}
+    assert {r["kind"] for r in rows} == {"feedback", "eval", "train"}
+    train_rows = [r for r in rows if r["kind"] == "train"]
+    assert [r["phase"] for r in train_rows] == ["pretrain", "preference"]
+    assert all(r["critic_loss"] >= 0 and r["alpha"] > 0 for r in train_rows)
     assert (out / "checkpoint.pt").exists() and (out / "returns.png").exists()
     printed = capsys.readouterr().out
     assert "questions asked" in printed and "evaluation return by step" in printed

@@ -34,6 +34,7 @@ from seqrank.runs import RunDir
 from seqrank.sac import SAC, SACSettings
 
 Progress = Callable[[int, dict[str, Any]], None]
+TRAIN_LOG_EVERY = 1_000  # steps between `train` rows of metrics.jsonl
 
 
 @dataclass
@@ -136,6 +137,8 @@ class Trainer:
                 obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
                 context = info.get("task_index")
             self._learn()
+            if c.step % TRAIN_LOG_EVERY == 0 and self.agent.last_metrics:
+                self._log_training()
             if c.step % config.eval_every == 0 or c.step == config.steps:
                 self._evaluate()
             now = time.perf_counter()
@@ -346,6 +349,16 @@ class Trainer:
                 "wall_seconds": c.train_seconds,
             }
         )
+
+    def _log_training(self) -> None:
+        c = self.counters
+        phase = "pretrain" if c.step <= self.config.first_session_step else "preference"
+        row: dict[str, Any] = {"step": c.step, "kind": "train", "phase": phase}
+        row.update(self.agent.last_metrics)
+        if phase == "pretrain":
+            row["intrinsic_reward_std"] = self.entropy_stats.std
+        row.update(c.extra)
+        self.run_dir.append_metrics(row)
 
     def _live(self) -> dict[str, Any]:
         c = self.counters

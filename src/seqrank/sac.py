@@ -86,6 +86,7 @@ class SAC:
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=settings.actor_lr)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=settings.alpha_lr)
         self.updates = 0
+        self.last_metrics: dict[str, float] = {}
         self.reset_critic()
 
     def reset_critic(self) -> None:
@@ -153,6 +154,7 @@ class SAC:
         self.updates += 1
         if self.updates % self.settings.target_update_every == 0:
             self.soft_update_target()
+        self.last_metrics = metrics
         return metrics
 
     def state_dict(self) -> dict[str, Any]:
