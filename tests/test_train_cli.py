@@ -107,3 +107,19 @@ def test_resume_refuses_new_settings_and_create_refuses_a_used_directory(tmp_pat
     assert result.returncode == 2 and "drop --steps" in result.stderr
     result = run_cli("--out", str(tmp_path), "--device", "cpu")
     assert result.returncode == 2 and "is not empty; resume it with --resume" in result.stderr
+
+
+def test_resume_before_the_first_checkpoint_starts_over_cleanly(tmp_path):
+    out = tmp_path / "run"
+    args = [*TINY, "--steps", "1700", "--max-feedback", "10", "--checkpoint-every", "100000"]
+    assert main(["train", *args, "--out", str(out), "--quiet"]) == 0
+    first = rows_without_timing(out)
+    assert not (out / "checkpoint.pt").exists()
+    assert main(["train", "--resume", str(out), "--quiet"]) == 0
+    assert rows_without_timing(out) == first  # the same rows, none twice
+
+
+def rows_without_timing(out):
+    rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    timing = {"steps_per_second", "wall_seconds"}
+    return [{k: v for k, v in row.items() if k not in timing} for row in rows]

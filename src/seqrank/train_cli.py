@@ -87,6 +87,8 @@ def _prepare(args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_d
         state = run.load_checkpoint()
         if state is not None:
             trainer.load_checkpoint(state)
+        else:  # killed before its first checkpoint: start over, dropping what it logged
+            run.truncate_metrics(0)
         err.print(f"resuming {run.path} at step {trainer.counters.step}")
         return trainer, config, run
     scale = getattr(args, "scale", "auto")
