@@ -24,6 +24,7 @@ import torch
 from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer
 from seqrank.config import DEVICES, TrainConfig
 from seqrank.envs import make_env
+from seqrank.evaluation import evaluate_policy, reward_quality
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import run_session
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
@@ -297,41 +298,24 @@ class Trainer:
         self.replay.relabel(self.reward_model.reward)
 
     def _reward_quality(self, session: int) -> dict[str, float]:
-        """Held-out accuracy on true preferences and correlation with the true reward."""
-        rng = np.random.default_rng([self.config.seed, 2, session])
-        sample = self.episodes.sample_segments(
-            2 * self.config.heldout_pairs, self.config.segment_length, rng
+        config = self.config
+        rng = np.random.default_rng([config.seed, 2, session])
+        return reward_quality(
+            self.reward_model,
+            self.episodes,
+            self.replay,
+            config.heldout_pairs,
+            config.segment_length,
+            rng,
         )
-        features, rewards = sample.features, sample.rewards
-        predicted = self.reward_model.member_returns(features).mean(0)
-        truth = rewards.sum(1)
-        a, b = np.arange(0, len(truth), 2), np.arange(1, len(truth), 2)
-        strict = truth[a] != truth[b]
-        agree = (predicted[a] > predicted[b]) == (truth[a] > truth[b])
-        size = len(self.replay)
-        idx = rng.choice(size, size=min(size, 20_000), replace=False)
-        learned = self.replay.reward[idx, 0].cpu().numpy()
-        true = self.replay.true_reward[idx, 0].cpu().numpy()
-        corr = float(np.corrcoef(learned, true)[0, 1]) if learned.std() and true.std() else 0.0
-        return {
-            "reward_heldout_accuracy": float(agree[strict].mean()) if strict.any() else 1.0,
-            "reward_correlation": corr,
-        }
 
     def _evaluate(self) -> None:
         config, c = self.config, self.counters
-        returns, successes = [], []
-        for i in range(config.eval_episodes):
-            obs, _ = self.eval_env.reset(seed=episode_seed(config.seed, 1, c.evaluations, i))
-            total, success, done = 0.0, False, False
-            while not done:
-                action = self.agent.act(obs, True, self.generator)
-                obs, reward, terminated, truncated, info = self.eval_env.step(action)
-                total += float(reward)
-                success = success or bool(info["success"])
-                done = terminated or truncated
-            returns.append(total)
-            successes.append(success)
+        seeds = [
+            episode_seed(config.seed, 1, c.evaluations, i) for i in range(config.eval_episodes)
+        ]
+        score = evaluate_policy(self.agent, self.eval_env, seeds, self.generator)
+        returns, successes = score.returns, score.successes
         c.evaluations += 1
         c.last_eval_return = float(np.mean(returns))
         c.last_eval_success = 100.0 * float(np.mean(successes))
@@ -352,7 +336,7 @@ class Trainer:
 
     def _log_training(self) -> None:
         c = self.counters
-        phase = "pretrain" if c.step <= self.config.first_session_step else "preference"
+        phase = "pretrain" if c.step < self.config.first_session_step else "preference"
         row: dict[str, Any] = {"step": c.step, "kind": "train", "phase": phase}
         row.update(self.agent.last_metrics)
         if phase == "pretrain":

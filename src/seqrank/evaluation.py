@@ -1,0 +1,66 @@
+"""How good is the policy, and how good is the learned reward."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from seqrank.buffer import EpisodeStore, ReplayBuffer
+from seqrank.envs import SimEnv
+from seqrank.reward_model import RewardModel
+from seqrank.sac import SAC
+
+CORRELATION_SAMPLE = 20_000
+
+
+@dataclass(frozen=True)
+class PolicyScore:
+    returns: list[float]
+    successes: list[bool]  # the episode reached info["success"] at some step
+
+
+def evaluate_policy(
+    agent: SAC, env: SimEnv, seeds: list[int], generator: torch.Generator
+) -> PolicyScore:
+    """One episode per seed with the deterministic action (tanh of the mean)."""
+    returns, successes = [], []
+    for seed in seeds:
+        obs, _ = env.reset(seed=seed)
+        total, success, done = 0.0, False, False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(agent.act(obs, True, generator))
+            total += float(reward)
+            success = success or bool(info["success"])
+            done = terminated or truncated
+        returns.append(total)
+        successes.append(success)
+    return PolicyScore(returns, successes)
+
+
+def reward_quality(
+    reward_model: RewardModel,
+    episodes: EpisodeStore,
+    replay: ReplayBuffer,
+    pairs: int,
+    segment_length: int,
+    rng: np.random.Generator,
+) -> dict[str, float]:
+    """Held-out accuracy on true preferences of fresh random segment pairs, and the
+    Pearson correlation of learned and true per-step reward over the replay buffer."""
+    sample = episodes.sample_segments(2 * pairs, segment_length, rng)
+    predicted = reward_model.member_returns(sample.features).mean(0)
+    truth = sample.rewards.sum(1)
+    a, b = np.arange(0, len(truth), 2), np.arange(1, len(truth), 2)
+    strict = truth[a] != truth[b]
+    agree = (predicted[a] > predicted[b]) == (truth[a] > truth[b])
+    size = len(replay)
+    idx = rng.choice(size, size=min(size, CORRELATION_SAMPLE), replace=False)
+    learned = replay.reward[idx, 0].cpu().numpy()
+    true = replay.true_reward[idx, 0].cpu().numpy()
+    corr = float(np.corrcoef(learned, true)[0, 1]) if learned.std() and true.std() else 0.0
+    return {
+        "reward_heldout_accuracy": float(agree[strict].mean()) if strict.any() else 1.0,
+        "reward_correlation": corr,
+    }
