@@ -1,4 +1,4 @@
-"""The `seqrank` command line: `seqrank train`, `seqrank theory`, `seqrank simulate`."""
+"""The `seqrank` command line: train, theory, simulate, label, labels, study-report."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from seqrank import __version__, console_tables
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
+from seqrank.labelling.cli import add_label_parsers, run_label, run_labels, run_study_report
 from seqrank.simulate import simulate
 from seqrank.theory import DEFAULT_MS, PAPER_FIGURE13, compute_theory, disagreements
 from seqrank.train_cli import add_train_parser, run_train
@@ -151,6 +152,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_train_parser(commands)
     commands.choices["train"].set_defaults(handler=run_train)
+    add_label_parsers(commands, _Parser)
+    commands.choices["label"].set_defaults(handler=run_label)
+    commands.choices["labels"].set_defaults(handler=run_labels)
+    commands.choices["study-report"].set_defaults(handler=run_study_report)
     return parser
 
 

@@ -157,7 +157,6 @@ def validate(config: TrainConfig) -> None:
     canonical_task(config.task)
     for name, accepted in (
         ("scheme", tuple(SCHEMES)),
-        ("teacher", tuple(TEACHER_PRESETS)),
         ("backbone", BACKBONES),
         ("selection", SELECTIONS),
         ("scale", SCALES),
@@ -166,6 +165,16 @@ def validate(config: TrainConfig) -> None:
         value = getattr(config, name)
         if value not in accepted:
             raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+    teacher = config.teacher
+    if teacher not in TEACHER_PRESETS and teacher != "human" and not teacher.startswith("replay:"):
+        raise ValueError(
+            f"unknown teacher {teacher!r}; accepted: {', '.join(TEACHER_PRESETS)}, human "
+            "(the labelling page) or replay:FILE (labels exported as JSONL)"
+        )
+    if teacher == "replay:":
+        raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
+    if teacher == "human" and not config.record_states:
+        raise ValueError("teacher 'human' needs record_states 1 to render the clips it shows")
     positive = [f.name for f in fields(config) if f.type in ("int", "float")]
     for name in positive:
         if name in ("seed", "unsup_steps", "updates_after_reset", "record_states"):

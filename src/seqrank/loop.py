@@ -15,18 +15,26 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 import torch
 
-from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer
+from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer, Segments
 from seqrank.config import DEVICES, TrainConfig
 from seqrank.envs import make_env
 from seqrank.evaluation import evaluate_policy, reward_quality
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.session import run_session
+from seqrank.feedback.schemes import SessionRecord
+from seqrank.feedback.session import (
+    FeedbackSource,
+    ScriptedSource,
+    SessionRequest,
+    prepare_session,
+    store_session,
+)
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
 from seqrank.mrn import PairBatch, meta_reward_step
 from seqrank.pretrain import RunningMeanStd, intrinsic_reward
@@ -74,9 +82,35 @@ def episode_seed(run_seed: int, *path: int) -> int:
     return int(np.random.SeedSequence([run_seed, *path]).generate_state(1)[0])
 
 
+def make_source(teacher: str) -> FeedbackSource:
+    """The feedback source a teacher name stands for: a scripted preset or `replay:FILE`."""
+    if teacher.startswith("replay:"):
+        from seqrank.labelling.replay import ReplaySource
+
+        return ReplaySource.from_file(teacher.removeprefix("replay:"))
+    if teacher == "human":
+        raise ValueError(
+            "teacher 'human' answers on the labelling page: start the run with "
+            "`seqrank label online ...` instead of `seqrank train`"
+        )
+    return ScriptedSource(ScriptedTeacher(teacher_preset(teacher)))
+
+
 class Trainer:
-    def __init__(self, config: TrainConfig, run: RunDir, progress: Progress | None = None):
+    def __init__(
+        self,
+        config: TrainConfig,
+        run: RunDir,
+        progress: Progress | None = None,
+        source: FeedbackSource | None = None,
+        wait_for_feedback: bool = True,
+    ):
+        """`wait_for_feedback=False` keeps training while a session after the first is being
+        answered (a person at the labelling page); its labels count once it is complete."""
         self.config, self.run_dir, self.progress = config, run, progress
+        self.wait_for_feedback = wait_for_feedback
+        self._pending: tuple[SessionRequest, Future[tuple[Segments, SessionRecord]]] | None = None
+        self._background: ThreadPoolExecutor | None = None
         self.device = resolve_device(config.device)
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
@@ -111,7 +145,9 @@ class Trainer:
         self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, self.device)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore()
-        self.teacher = ScriptedTeacher(teacher_preset(config.teacher))
+        self.source = source if source is not None else make_source(config.teacher)
+        if hasattr(self.source, "check_compatible"):
+            self.source.check_compatible(config, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
         self.entropy_stats = RunningMeanStd()
@@ -191,9 +227,14 @@ class Trainer:
         if c.step < config.first_session_step:
             self._unsupervised_update()
             return
-        budget_left = c.asked < config.max_feedback
-        if c.sessions == 0 or (
-            budget_left and c.step - c.last_session_step >= config.feedback_frequency
+        if self._pending is not None and self._pending[1].done():
+            request, answered = self._pending
+            self._pending = None
+            self._finish_feedback(request, *answered.result())
+        budget_left = c.asked < config.max_feedback and self.source.has_session(c.sessions)
+        if self._pending is None and (
+            c.sessions == 0
+            or (budget_left and c.step - c.last_session_step >= config.feedback_frequency)
         ):
             self._feedback()
         if config.backbone == "mrn" and budget_left and c.step % config.meta_update_frequency == 0:
@@ -214,17 +255,30 @@ class Trainer:
         questions = min(config.reward_batch, config.max_feedback - c.asked)
         margin_returns = self.episodes.recent_returns(10)
         margin = float(margin_returns.mean()) * config.segment_length / self.env.episode_length
-        outcome = run_session(
+        request = prepare_session(
             config,
             questions,
             self.episodes,
             self.reward_model,
-            self.teacher.with_margin(margin),
-            self.labels,
             c.sessions,
             self.rng,
             informative=not first,
+            margin=margin,
         )
+        if first or self.wait_for_feedback:
+            self._finish_feedback(request, *self.source.ask_session(request))
+            return
+        if self._background is None:
+            self._background = ThreadPoolExecutor(1, thread_name_prefix="feedback")
+        self._pending = (request, self._background.submit(self.source.ask_session, request))
+        c.last_session_step = c.step
+
+    def _finish_feedback(
+        self, request: SessionRequest, segments: Segments, record: SessionRecord
+    ) -> None:
+        config, c = self.config, self.counters
+        first = request.session == 0
+        outcome = store_session(segments, record, self.labels, request.session)
         stats = outcome.stats
         c.sessions += 1
         c.asked += stats.asked

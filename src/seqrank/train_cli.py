@@ -29,31 +29,36 @@ def add_train_parser(commands: Any) -> None:
         "sequential scheme, oracle teacher, PEBBLE, the paper's Table 2 settings on a GPU "
         "and the small preset on a CPU (--scale auto). Every setting below overrides.",
     )
-    train.add_argument(
+    add_run_options(train)
+    train.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_run_options(parser: argparse.ArgumentParser) -> None:
+    """--scale, --out, --resume and one option per TrainConfig field."""
+    parser.add_argument(
         "--scale",
         choices=("auto", *SCALES),
         default=argparse.SUPPRESS,
         help="paper: Table 2 sizes; small: a 2-core CPU preset; auto (default): paper on "
         "CUDA, small on CPU",
     )
-    train.add_argument(
+    parser.add_argument(
         "--out",
         type=Path,
         default=argparse.SUPPRESS,
         help="run directory (default: seqrank-out/runs/<task>_<scheme>_...)",
     )
-    train.add_argument(
+    parser.add_argument(
         "--resume",
         type=Path,
         metavar="RUN_DIR",
         default=argparse.SUPPRESS,
         help="continue a killed run from its last checkpoint",
     )
-    train.add_argument("--quiet", action="store_true", help="no progress bar")
     for f in fields(TrainConfig):
         if f.name == "scale":
             continue
-        train.add_argument(
+        parser.add_argument(
             f"--{f.name.replace('_', '-')}",
             type=_TYPES[str(f.type)],
             default=argparse.SUPPRESS,
@@ -66,7 +71,7 @@ def run_train(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.loop import Trainer, resolve_device  # torch loads slowly: only when training
 
     try:
-        trainer, config, run = _prepare(args, err, Trainer, resolve_device)
+        trainer, config, run = prepare_run(args, err, Trainer, resolve_device)
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
         raise UsageError(str(problem)) from None
     summary = _train_with_progress(trainer, config, err, args.quiet)
@@ -74,7 +79,9 @@ def run_train(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
-def _prepare(args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any) -> Any:
+def prepare_run(
+    args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any
+) -> Any:
     """Build the trainer of a new or resumed run; bad input raises ValueError."""
     given = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
     if hasattr(args, "resume"):
@@ -107,7 +114,8 @@ def _prepare(args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_d
 def _run_name(config: TrainConfig) -> str:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     task = config.task.replace(":", "-")
-    return f"{task}_{config.scheme}_{config.teacher}_{config.backbone}_seed{config.seed}_{stamp}"
+    teacher = "replay" if config.teacher.startswith("replay:") else config.teacher
+    return f"{task}_{config.scheme}_{teacher}_{config.backbone}_seed{config.seed}_{stamp}"
 
 
 def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet: bool) -> Any:

@@ -1,20 +1,72 @@
-"""One feedback session of a training run: cut segments, ask, augment, store the labels."""
+"""One feedback session of a training run: cut segments, ask, augment, store the labels.
+
+Who answers is a `FeedbackSource`: a scripted teacher (B-Pref noise models), a person at
+the labelling page (`seqrank.labelling.human`), or labels recorded earlier
+(`seqrank.labelling.replay`). A source gets the sampled pool and the scheme's chooser and
+returns the segments it actually used with the session's record; the augmentation and
+storage are the same for all of them.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from seqrank.buffer import EpisodeStore
+from seqrank.buffer import EpisodeStore, Segments
 from seqrank.config import TrainConfig
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import get_scheme, segments_needed
+from seqrank.feedback.schemes import Chooser, SessionRecord, get_scheme, segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.teachers import ScriptedTeacher
 from seqrank.reward_model import RewardModel
 from seqrank.types import Answer
+
+
+@dataclass(frozen=True)
+class SessionRequest:
+    """What a source needs to run session `session` of `questions` questions."""
+
+    scheme: str
+    questions: int
+    session: int
+    segments: Segments  # the sampled candidate pool
+    chooser: Chooser
+    rng: np.random.Generator
+    margin: float  # the scripted teachers' equal-preference margin for this session
+
+
+class FeedbackSource(Protocol):
+    def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
+        """Answer a session; returns the pool the record's segment ids index into."""
+        ...
+
+    def has_session(self, session: int) -> bool:
+        """False when this source cannot give session `session` (recorded labels ran out)."""
+        ...
+
+
+class ScriptedSource:
+    """B-Pref's scripted teacher, answering from the true rewards."""
+
+    def __init__(self, teacher: ScriptedTeacher):
+        self.teacher = teacher
+
+    def has_session(self, session: int) -> bool:
+        return True
+
+    def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
+        teacher = self.teacher.with_margin(request.margin)
+        rewards, rng = request.segments.rewards, request.rng
+
+        def ask(first: int, second: int) -> Answer:
+            return teacher.answer(rewards[first], rewards[second], rng)
+
+        pool = len(rewards)
+        record = get_scheme(request.scheme)(pool, request.questions, ask, rng, request.chooser)
+        return request.segments, record
 
 
 @dataclass(frozen=True)
@@ -23,18 +75,17 @@ class SessionOutcome:
     segments_used: int
 
 
-def run_session(
+def prepare_session(
     config: TrainConfig,
     questions: int,
     episodes: EpisodeStore,
     reward_model: RewardModel,
-    teacher: ScriptedTeacher,
-    labels: LabelStore,
     session: int,
     rng: np.random.Generator,
     informative: bool,
-) -> SessionOutcome:
-    """Ask `questions` with the configured scheme; store asked and inferred pairs.
+    margin: float,
+) -> SessionRequest:
+    """Sample the candidate pool and build the chooser for a session of `questions`.
 
     With an informative selection (after the first session) the candidate pool is
     `oversample` times what the scheme needs, and the chooser picks among it.
@@ -42,16 +93,17 @@ def run_session(
     needed = segments_needed(config.scheme, questions)
     use_model = informative and config.selection != "uniform"
     pool = needed * (config.oversample if use_model else 1)
-    segments = episodes.sample_segments(pool, config.segment_length, rng)
-    features, rewards = segments.features, segments.rewards
-    true_returns = rewards.sum(axis=1)
-    member_returns = reward_model.member_returns(features) if use_model else None
+    sampled = episodes.sample_segments(pool, config.segment_length, rng)
+    member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(config.selection if use_model else "uniform", member_returns)
+    return SessionRequest(config.scheme, questions, session, sampled, chooser, rng, margin)
 
-    def ask(first: int, second: int) -> Answer:
-        return teacher.answer(rewards[first], rewards[second], rng)
 
-    record = get_scheme(config.scheme)(pool, questions, ask, rng, chooser)
+def store_session(
+    segments: Segments, record: SessionRecord, labels: LabelStore, session: int
+) -> SessionOutcome:
+    """Augment the answers by transitivity and store asked and inferred pairs."""
+    true_returns = segments.rewards.sum(axis=1)
     augmentation = augment(record.answers, true_returns.tolist())
     labels.add_session(segments, true_returns, record.segments, augmentation, session)
     return SessionOutcome(augmentation.stats, len(record.segments))

@@ -1,0 +1,1 @@
+"""The labelling page: people answer the schemes' questions (online, offline, study)."""

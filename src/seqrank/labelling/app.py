@@ -1,0 +1,335 @@
+"""Running the labelling page: the web server thread and the three drivers.
+
+- online: a training run whose teacher is the person at the page (`HumanSource`).
+- offline: sessions over segments cut from episodes of a saved run's policy, no training.
+- study: the D.7 protocol, one online run per method for one participant, each followed by
+  the satisfaction survey.
+
+The driver runs in the main thread; uvicorn serves the page from a second thread; clips are
+rendered on a third (see clips.py). All three share one `Hub` and one database.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import secrets
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from seqrank.buffer import Episode, EpisodeStore
+from seqrank.config import TrainConfig
+from seqrank.envs import canonical_task, make_env
+from seqrank.feedback.schemes import segments_needed
+from seqrank.feedback.selection import make_chooser
+from seqrank.feedback.session import SessionRequest
+from seqrank.labelling.clips import ClipRenderer
+from seqrank.labelling.db import LabelDB, from_blob
+from seqrank.labelling.human import Hub, HumanSource, PageSettings, Stopped
+from seqrank.labelling.jsonl import export_file
+
+Say = Callable[[str], None]
+LABELS_FILE = "labels.jsonl"
+
+
+@dataclass
+class ServerOptions:
+    host: str = "127.0.0.1"
+    port: int = 8765  # 0: any free port
+    token: str | None = None
+    countdown_s: float = 3.0
+    annotator: str = "anonymous"
+    fps: int = 30
+    size: int = 128
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def page_token(options: ServerOptions) -> str | None:
+    """Listening beyond this machine always needs a token (one is made if none is given)."""
+    if options.token is not None:
+        return options.token
+    return None if is_loopback(options.host) else secrets.token_urlsafe(16)
+
+
+class PageServer:
+    """uvicorn in a background thread; `url` is the address to open."""
+
+    def __init__(self, hub: Hub, options: ServerOptions):
+        import uvicorn
+
+        from seqrank.labelling.server import create_app
+
+        family = socket.AF_INET6 if ":" in options.host else socket.AF_INET
+        self._socket = socket.socket(family, socket.SOCK_STREAM)
+        self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self._socket.bind((options.host, options.port))
+        except OSError as error:
+            raise ValueError(
+                f"cannot listen on {options.host}:{options.port} ({error.strerror}); "
+                "choose another --port (0 picks a free one)"
+            ) from None
+        port = self._socket.getsockname()[1]
+        config = uvicorn.Config(create_app(hub), log_level="warning", lifespan="off")
+        self._server = uvicorn.Server(config)
+        self._thread = threading.Thread(
+            target=self._server.run, kwargs={"sockets": [self._socket]}, daemon=True
+        )
+        host = f"[{options.host}]" if ":" in options.host else options.host
+        token = hub.settings.token
+        self.url = f"http://{host}:{port}/" + (f"?token={token}" if token else "")
+        self.port = port
+
+    def start(self) -> None:
+        self._thread.start()
+        deadline = time.monotonic() + 30
+        while not self._server.started and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+    def stop(self) -> None:
+        self._server.should_exit = True
+        self._thread.join(timeout=10)
+        self._socket.close()
+
+
+def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
+    """The database in `directory` and a renderer for `task`'s clips."""
+    db = LabelDB.in_dir(directory)
+    settings = PageSettings(options.countdown_s, options.annotator, page_token(options))
+    hub = Hub(db, settings)
+
+    def make_frames() -> Callable[[int], np.ndarray]:
+        env = make_env(task, 0)
+
+        def frames(segment_id: int) -> np.ndarray:
+            row = db.segment(segment_id)
+            if row is None or row["states"] is None:
+                raise ValueError(f"segment {segment_id} has no saved states")
+            return env.render_states(
+                from_blob(row["states"]), row["context"], options.size, options.size
+            )
+
+        return frames
+
+    hub.renderer = ClipRenderer(directory / "clips", make_frames, options.fps)
+    return hub
+
+
+def record_task(db: LabelDB, task: str, obs_dim: int, act_dim: int, segment_length: int) -> None:
+    values = {"task": task, "obs_dim": obs_dim, "act_dim": act_dim}
+    values["segment_length"] = segment_length
+    for key, value in values.items():
+        stored = db.get_meta(key)
+        if stored is not None and json.loads(stored) != value:
+            raise ValueError(
+                f"{db.path} holds labels for {key} {json.loads(stored)!r}, not {value!r}"
+            )
+        db.set_meta(key, json.dumps(value))
+
+
+def close_hub(hub: Hub, directory: Path, say: Say) -> None:
+    hub.stop.set()
+    answers = export_file(hub.db, directory / LABELS_FILE)
+    say(f"{answers} answers saved in {hub.db.path} and {directory / LABELS_FILE}")
+    if hub.renderer is not None:
+        hub.renderer.close()
+    hub.db.close()
+
+
+# ---- offline -----------------------------------------------------------------------
+@dataclass
+class OfflineOptions:
+    task: str
+    scheme: str
+    questions: int
+    sessions: int
+    segment_length: int
+    episodes: int
+    seed: int
+    policy_run: Path | None  # a run directory whose saved policy acts; None: random actions
+
+
+def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
+    """Episodes with their physics states, acted by a run's saved policy or at random."""
+    import torch
+
+    env = make_env(options.task, options.seed)
+    agent = (
+        _saved_policy(options.policy_run, env.obs_dim, env.act_dim) if options.policy_run else None
+    )
+    rng = np.random.default_rng([options.seed, 3])
+    generator = torch.Generator().manual_seed(options.seed)
+    store = EpisodeStore(options.episodes)
+    for number in range(options.episodes):
+        obs, info = env.reset(seed=int(rng.integers(2**31)))
+        columns: dict[str, list[Any]] = {"obs": [], "action": [], "reward": [], "states": []}
+        done = False
+        while not done:
+            if agent is None:
+                action = rng.uniform(-1.0, 1.0, env.act_dim).astype(np.float32)
+            else:
+                action = agent.act(obs, False, generator)
+            columns["states"].append(env.get_state())
+            next_obs, reward, terminated, truncated, _ = env.step(action)
+            for key, value in (("obs", obs), ("action", action), ("reward", reward)):
+                columns[key].append(value)
+            obs, done = next_obs, terminated or truncated
+        store.add(
+            Episode(
+                np.asarray(columns["obs"], np.float32),
+                np.asarray(columns["action"], np.float32),
+                np.asarray(columns["reward"], np.float64),
+                info.get("task_index"),
+                np.asarray(columns["states"]),
+            )
+        )
+        say(f"episode {number + 1}/{options.episodes} rolled out")
+    env.close()
+    return store
+
+
+def _saved_policy(run_dir: Path, obs_dim: int, act_dim: int) -> Any:
+    from seqrank.runs import RunDir
+    from seqrank.sac import SAC, SACSettings
+
+    run = RunDir.open(run_dir)
+    config = run.read_config()
+    state = run.load_checkpoint()
+    if state is None:
+        raise ValueError(f"{run_dir} has no checkpoint yet, so it has no policy to roll out")
+    import torch
+
+    settings = SACSettings(
+        config.hidden,
+        config.layers,
+        config.actor_lr,
+        config.critic_lr,
+        config.alpha_lr,
+        config.init_temperature,
+        config.discount,
+        config.tau,
+        config.target_update_every,
+    )
+    agent = SAC(obs_dim, act_dim, settings, torch.device("cpu"))
+    agent.load_state_dict(state["agent"])
+    return agent
+
+
+def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) -> int:
+    """Ask every session not yet complete; returns the number of answers in the database."""
+    db = hub.db
+    env = make_env(options.task, options.seed)
+    record_task(db, options.task, env.obs_dim, env.act_dim, options.segment_length)
+    env.close()
+    hub.sessions_total = options.sessions
+    source = HumanSource(hub, "offline", options.seed)
+    episodes: EpisodeStore | None = None
+    needed = segments_needed(options.scheme, options.questions)
+    for session in range(options.sessions):
+        stored = db.session_row("offline", session)
+        if stored is not None and db.count("offline", session) >= stored["questions"]:
+            continue
+        rng = np.random.default_rng([options.seed, 4, session])
+        if stored is not None:
+            pool = db.pool("offline", session)
+        else:
+            if episodes is None:
+                hub.set_phase("waiting", "preparing the clips")
+                episodes = rollout_episodes(options, say)
+            pool = episodes.sample_segments(needed, options.segment_length, rng)
+        request = SessionRequest(
+            options.scheme,
+            options.questions,
+            session,
+            pool,
+            make_chooser("uniform", None),
+            rng,
+            0.0,
+        )
+        say(f"session {session + 1}/{options.sessions}: {options.questions} questions")
+        source.ask_session(request)
+        export_file(db, directory / LABELS_FILE)
+    hub.set_phase("done", "all sessions are answered: thank you")
+    return len(db.answered_questions())
+
+
+# ---- online and study ----------------------------------------------------------------
+def training_progress(
+    hub: Hub, config: TrainConfig, say: Say
+) -> Callable[[int, dict[str, Any]], None]:
+    def report(step: int, live: dict[str, Any]) -> None:
+        ret = live["eval_return"]
+        text = (
+            f"step {step:,} of {config.steps:,}; eval return {'-' if ret is None else f'{ret:.1f}'}"
+        )
+        if hub.phase != "asking" or hub.db.pending_question() is None:
+            hub.set_phase("training", f"the agent is training: {text}")
+        if step % config.eval_every == 0:
+            say(f"{text}; asked {live['asked']}, inferred {live['inferred']}")
+
+    return report
+
+
+def train_with_person(trainer: Any, hub: Hub, say: Say) -> dict[str, Any] | None:
+    """Train; None when the server was stopped while a question was waiting."""
+    try:
+        summary: dict[str, Any] = trainer.train()
+        return summary
+    except Stopped:
+        say("stopped while waiting for an answer; every given answer is saved")
+        return None
+
+
+def wait_survey(hub: Hub, run: str, scheme: str) -> bool:
+    """Open the survey for `run` and wait for it; False if stopped first."""
+    db = hub.db
+    if db.survey(run) is not None:
+        return True
+    hub.survey_run, hub.scheme = run, scheme
+    hub.set_phase("survey", f"survey about the {scheme} method")
+    with db.changed:
+        while not hub.stop.is_set():
+            if db.survey(run) is not None:
+                hub.survey_run = None
+                return True
+            db.changed.wait(0.5)
+    return False
+
+
+STUDY_SCHEMES = ("pairwise", "sequential", "root")
+
+
+def study_order(study_dir: Path, participant: str, schemes: tuple[str, ...]) -> list[str]:
+    """Counterbalanced method order: participants take the orderings in turn (a Latin cycle)."""
+    path = study_dir / participant / "study.json"
+    if path.exists():
+        order: list[str] = json.loads(path.read_text())["order"]
+        return order
+    others = [p for p in study_dir.glob("*/study.json")]
+    from itertools import permutations
+
+    orders = list(permutations(schemes))
+    order = list(orders[len(others) % len(orders)])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"participant": participant, "order": order}, indent=2))
+    return order
+
+
+def check_task_name(task: str) -> str:
+    canonical_task(task)
+    return task

@@ -1,0 +1,404 @@
+"""The labelling database: one SQLite file holding pools, questions, answers and surveys.
+
+Durability is the point: every write is its own transaction, committed (WAL, synchronous
+FULL) before the caller hears back, so an answer the page was told about survives a kill at
+any moment. A question is keyed by (run, session, index); its answer by the question id, so
+a repeated submission finds the stored answer instead of writing a second one.
+
+`run` names a training run inside one labelling directory ("online" / "offline", or the
+scheme in a study); `session` and `index` count from 0.
+"""
+
+from __future__ import annotations
+
+import io
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from seqrank.buffer import Segments
+
+DB_NAME = "labels.sqlite"
+CHOICES = ("left", "right", "equal", "skip", "timeout")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS sessions (
+    run TEXT NOT NULL, session INTEGER NOT NULL, scheme TEXT NOT NULL,
+    questions INTEGER NOT NULL, seed INTEGER NOT NULL, defender_side TEXT NOT NULL,
+    created REAL NOT NULL, PRIMARY KEY (run, session));
+CREATE TABLE IF NOT EXISTS segments (
+    id INTEGER PRIMARY KEY AUTOINCREMENT, run TEXT NOT NULL, session INTEGER NOT NULL,
+    pool_id INTEGER NOT NULL, features BLOB NOT NULL, rewards BLOB NOT NULL, states BLOB,
+    context INTEGER, UNIQUE (run, session, pool_id));
+CREATE TABLE IF NOT EXISTS choices (
+    run TEXT NOT NULL, session INTEGER NOT NULL, k INTEGER NOT NULL, position INTEGER NOT NULL,
+    PRIMARY KEY (run, session, k));
+CREATE TABLE IF NOT EXISTS questions (
+    id INTEGER PRIMARY KEY AUTOINCREMENT, run TEXT NOT NULL, session INTEGER NOT NULL,
+    idx INTEGER NOT NULL, first INTEGER NOT NULL, second INTEGER NOT NULL,
+    defender INTEGER, left_seg INTEGER NOT NULL, right_seg INTEGER NOT NULL,
+    created REAL NOT NULL, UNIQUE (run, session, idx));
+CREATE TABLE IF NOT EXISTS answers (
+    question_id INTEGER PRIMARY KEY REFERENCES questions (id), choice TEXT NOT NULL,
+    answer TEXT NOT NULL, latency_ms REAL NOT NULL, annotator TEXT NOT NULL,
+    answered_at REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS surveys (
+    run TEXT PRIMARY KEY, scheme TEXT NOT NULL, satisfaction INTEGER NOT NULL,
+    criteria TEXT NOT NULL, annotator TEXT NOT NULL, answered_at REAL NOT NULL);
+"""
+
+
+@dataclass(frozen=True)
+class StoredQuestion:
+    id: int
+    run: str
+    session: int
+    index: int
+    first: int  # segment ids (the segments table)
+    second: int
+    defender: int | None
+    left: int
+    right: int
+
+
+@dataclass(frozen=True)
+class StoredAnswer:
+    question_id: int
+    choice: str  # what was clicked: left / right / equal / skip / timeout
+    answer: str  # mapped to the question's order: first / second / equal / skip
+    latency_ms: float
+    annotator: str
+    answered_at: float
+
+
+class AnswerConflict(Exception):
+    """The question already holds a different answer."""
+
+
+def to_blob(array: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    np.save(buffer, np.asarray(array), allow_pickle=False)
+    return buffer.getvalue()
+
+
+def from_blob(blob: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(blob), allow_pickle=False)
+
+
+def choice_to_answer(choice: str, question: StoredQuestion) -> str:
+    """Map what was clicked on screen back to the question's own order."""
+    if choice in ("left", "right"):
+        shown = question.left if choice == "left" else question.right
+        return "first" if shown == question.first else "second"
+    return "skip" if choice == "timeout" else choice
+
+
+class LabelDB:
+    """Thread-safe access to one labelling database (one connection, one lock)."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.RLock()
+        self.changed = threading.Condition(self._lock)
+        self._conn = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
+        self._conn.row_factory = sqlite3.Row
+        self._conn.execute("PRAGMA journal_mode=WAL")
+        self._conn.execute("PRAGMA synchronous=FULL")
+        self._conn.execute("PRAGMA busy_timeout=10000")
+        with self._lock:
+            self._conn.executescript(_SCHEMA)
+
+    @classmethod
+    def in_dir(cls, directory: Path) -> LabelDB:
+        return cls(Path(directory) / DB_NAME)
+
+    def close(self) -> None:
+        with self._lock:
+            self._conn.close()
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        with self._lock:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._conn
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+            self.changed.notify_all()
+
+    def _rows(self, sql: str, *params: Any) -> list[sqlite3.Row]:
+        with self._lock:
+            return list(self._conn.execute(sql, params))
+
+    # ---- meta --------------------------------------------------------------------
+    def get_meta(self, key: str) -> str | None:
+        rows = self._rows("SELECT value FROM meta WHERE key = ?", key)
+        return rows[0]["value"] if rows else None
+
+    def set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as conn:
+            conn.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, value))
+
+    # ---- sessions and their pools ------------------------------------------------
+    def session_row(self, run: str, session: int) -> sqlite3.Row | None:
+        rows = self._rows("SELECT * FROM sessions WHERE run = ? AND session = ?", run, session)
+        return rows[0] if rows else None
+
+    def create_session(
+        self,
+        run: str,
+        session: int,
+        scheme: str,
+        questions: int,
+        seed: int,
+        defender_side: str,
+        segments: Segments,
+    ) -> None:
+        """Store a session and its whole candidate pool, in one transaction."""
+        with self._transaction() as conn:
+            conn.execute(
+                "INSERT INTO sessions VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (run, session, scheme, questions, seed, defender_side, time.time()),
+            )
+            for pool_id in range(len(segments.features)):
+                self._insert_segment(conn, run, session, pool_id, segments, pool_id)
+
+    @staticmethod
+    def _insert_segment(
+        conn: sqlite3.Connection,
+        run: str,
+        session: int,
+        pool_id: int,
+        segments: Segments,
+        row: int,
+    ) -> None:
+        states = segments.states[row]
+        conn.execute(
+            "INSERT OR IGNORE INTO segments (run, session, pool_id, features, rewards, states, "
+            "context) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (
+                run,
+                session,
+                pool_id,
+                to_blob(segments.features[row].astype(np.float32)),
+                to_blob(np.asarray(segments.rewards[row], np.float64)),
+                None if states is None else to_blob(states),
+                segments.contexts[row],
+            ),
+        )
+
+    def pool(self, run: str, session: int) -> Segments:
+        rows = self._rows(
+            "SELECT * FROM segments WHERE run = ? AND session = ? ORDER BY pool_id", run, session
+        )
+        return _segments(rows)
+
+    def segment_ids(self, run: str, session: int) -> dict[int, int]:
+        """pool id -> segment id."""
+        rows = self._rows(
+            "SELECT id, pool_id FROM segments WHERE run = ? AND session = ?", run, session
+        )
+        return {r["pool_id"]: r["id"] for r in rows}
+
+    def segment(self, segment_id: int) -> sqlite3.Row | None:
+        rows = self._rows("SELECT * FROM segments WHERE id = ?", segment_id)
+        return rows[0] if rows else None
+
+    def segments_by_id(self, ids: list[int]) -> dict[int, sqlite3.Row]:
+        marks = ",".join("?" * len(ids))
+        return {
+            r["id"]: r for r in self._rows(f"SELECT * FROM segments WHERE id IN ({marks})", *ids)
+        }
+
+    def stored_choices(self, run: str, session: int) -> list[int]:
+        rows = self._rows(
+            "SELECT position FROM choices WHERE run = ? AND session = ? ORDER BY k", run, session
+        )
+        return [r["position"] for r in rows]
+
+    def add_choice(self, run: str, session: int, k: int, position: int) -> None:
+        with self._transaction() as conn:
+            conn.execute(
+                "INSERT OR IGNORE INTO choices VALUES (?, ?, ?, ?)", (run, session, k, position)
+            )
+
+    # ---- questions and answers ---------------------------------------------------
+    def ensure_question(
+        self,
+        run: str,
+        session: int,
+        index: int,
+        first: int,
+        second: int,
+        defender: int | None,
+        left: int,
+        right: int,
+    ) -> StoredQuestion:
+        """The stored question (run, session, index), created if new.
+
+        A stored question must ask about the same two segments: replaying a session after a
+        restart that asks something else means the pool or the choices changed.
+        """
+        with self._transaction() as conn:
+            conn.execute(
+                "INSERT OR IGNORE INTO questions (run, session, idx, first, second, defender, "
+                "left_seg, right_seg, created) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (run, session, index, first, second, defender, left, right, time.time()),
+            )
+            row = conn.execute(
+                "SELECT * FROM questions WHERE run = ? AND session = ? AND idx = ?",
+                (run, session, index),
+            ).fetchone()
+        question = _question(row)
+        if (question.first, question.second) != (first, second):
+            raise RuntimeError(
+                f"{self.path}: run {run!r} session {session} question {index} was stored as "
+                f"segments {question.first} vs {question.second}, but the replayed session "
+                f"asks {first} vs {second}; the stored session cannot be continued"
+            )
+        return question
+
+    def question(self, question_id: int) -> StoredQuestion | None:
+        rows = self._rows("SELECT * FROM questions WHERE id = ?", question_id)
+        return _question(rows[0]) if rows else None
+
+    def pending_question(self) -> StoredQuestion | None:
+        """The oldest question without an answer (there is at most one while asking)."""
+        rows = self._rows(
+            "SELECT q.* FROM questions q LEFT JOIN answers a ON a.question_id = q.id "
+            "WHERE a.question_id IS NULL ORDER BY q.id LIMIT 1"
+        )
+        return _question(rows[0]) if rows else None
+
+    def answer(self, question_id: int) -> StoredAnswer | None:
+        rows = self._rows("SELECT * FROM answers WHERE question_id = ?", question_id)
+        return _answer(rows[0]) if rows else None
+
+    def record_answer(
+        self, question: StoredQuestion, choice: str, latency_ms: float, annotator: str
+    ) -> tuple[StoredAnswer, bool]:
+        """Commit an answer; returns it and whether it was already stored (a duplicate).
+
+        Raises AnswerConflict when the question already holds a different answer.
+        """
+        if choice not in CHOICES:
+            raise ValueError(f"unknown choice {choice!r}; accepted: {', '.join(CHOICES)}")
+        answer = choice_to_answer(choice, question)
+        with self._transaction() as conn:
+            row = conn.execute(
+                "SELECT * FROM answers WHERE question_id = ?", (question.id,)
+            ).fetchone()
+            if row is not None:
+                stored = _answer(row)
+                if stored.choice != choice:
+                    raise AnswerConflict(
+                        f"question {question.id} was already answered {stored.choice!r}; "
+                        f"the new answer {choice!r} was not stored"
+                    )
+                return stored, True
+            now = time.time()
+            conn.execute(
+                "INSERT INTO answers VALUES (?, ?, ?, ?, ?, ?)",
+                (question.id, choice, answer, latency_ms, annotator, now),
+            )
+        return StoredAnswer(question.id, choice, answer, latency_ms, annotator, now), False
+
+    def wait_answer(self, question_id: int, stop: threading.Event) -> StoredAnswer | None:
+        """Block until the question is answered (None if `stop` is set first)."""
+        with self.changed:
+            while not stop.is_set():
+                stored = self.answer(question_id)
+                if stored is not None:
+                    return stored
+                # answers may also come from another process: look again now and then
+                self.changed.wait(0.5)
+        return None
+
+    def answered_questions(
+        self, run: str | None = None
+    ) -> list[tuple[StoredQuestion, StoredAnswer]]:
+        where = "" if run is None else "WHERE q.run = ?"
+        rows = self._rows(
+            "SELECT q.*, a.choice, a.answer, a.latency_ms, a.annotator, a.answered_at "
+            f"FROM questions q JOIN answers a ON a.question_id = q.id {where} ORDER BY q.id",
+            *(() if run is None else (run,)),
+        )
+        return [(_question(r), _answer(r, r["id"])) for r in rows]
+
+    def count(self, run: str, session: int) -> int:
+        rows = self._rows(
+            "SELECT COUNT(*) AS n FROM questions q JOIN answers a ON a.question_id = q.id "
+            "WHERE q.run = ? AND q.session = ?",
+            run,
+            session,
+        )
+        return int(rows[0]["n"])
+
+    def sessions(self) -> list[sqlite3.Row]:
+        return self._rows("SELECT * FROM sessions ORDER BY created, run, session")
+
+    # ---- surveys -----------------------------------------------------------------
+    def survey(self, run: str) -> sqlite3.Row | None:
+        rows = self._rows("SELECT * FROM surveys WHERE run = ?", run)
+        return rows[0] if rows else None
+
+    def surveys(self) -> list[sqlite3.Row]:
+        return self._rows("SELECT * FROM surveys ORDER BY answered_at")
+
+    def record_survey(
+        self, run: str, scheme: str, satisfaction: int, criteria: str, annotator: str
+    ) -> bool:
+        """Store a survey; False if one was already stored for `run` (kept as it was)."""
+        with self._transaction() as conn:
+            cursor = conn.execute(
+                "INSERT OR IGNORE INTO surveys VALUES (?, ?, ?, ?, ?, ?)",
+                (run, scheme, satisfaction, criteria, annotator, time.time()),
+            )
+            return cursor.rowcount == 1
+
+
+def _question(row: sqlite3.Row) -> StoredQuestion:
+    return StoredQuestion(
+        row["id"],
+        row["run"],
+        row["session"],
+        row["idx"],
+        row["first"],
+        row["second"],
+        row["defender"],
+        row["left_seg"],
+        row["right_seg"],
+    )
+
+
+def _answer(row: sqlite3.Row, question_id: int | None = None) -> StoredAnswer:
+    return StoredAnswer(
+        row["question_id"] if question_id is None else question_id,
+        row["choice"],
+        row["answer"],
+        row["latency_ms"],
+        row["annotator"],
+        row["answered_at"],
+    )
+
+
+def _segments(rows: list[sqlite3.Row]) -> Segments:
+    if not rows:
+        raise ValueError("no segments stored")
+    return Segments(
+        np.stack([from_blob(r["features"]) for r in rows]),
+        np.stack([from_blob(r["rewards"]) for r in rows]),
+        [None if r["states"] is None else from_blob(r["states"]) for r in rows],
+        [r["context"] for r in rows],
+    )
