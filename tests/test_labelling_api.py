@@ -114,7 +114,8 @@ def test_answers_are_stored_exactly_and_mapped_back_to_the_question_order(page):
 
 
 def test_duplicates_are_idempotent_and_conflicts_stale_and_unknown_are_rejected(page):
-    question, reply = page.answer("left")
+    question, first = page.answer("left")
+    assert first.json()["duplicate"] is False
     body = {"question_id": question["id"], "choice": "left", "latency_ms": 9}
     again = page.client.post("/api/answer", json=body)
     assert again.status_code == 200 and again.json()["duplicate"] is True
@@ -162,7 +163,8 @@ def test_concurrent_submissions_store_one_answer(page):
         replies = list(
             pool.map(
                 lambda c: page.client.post(
-                    "/api/answer", json={"question_id": question["id"], "choice": c, "latency_ms": 1}
+                    "/api/answer",
+                    json={"question_id": question["id"], "choice": c, "latency_ms": 1},
                 ),
                 choices,
             )
@@ -197,7 +199,11 @@ def test_survey_only_when_open_and_idempotent(page):
     assert first.status_code == 200 and first.json()["duplicate"] is False
     assert page.client.post("/api/survey", json=body).json()["duplicate"] is True
     row = page.hub.db.survey("sequential")
-    assert (row["satisfaction"], row["criteria"], row["annotator"]) == (4, "distance moved", "tester")
+    assert (row["satisfaction"], row["criteria"], row["annotator"]) == (
+        4,
+        "distance moved",
+        "tester",
+    )
 
 
 def test_labels_endpoint_exports_what_was_answered(page):

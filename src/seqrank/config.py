@@ -174,7 +174,10 @@ def validate(config: TrainConfig) -> None:
     if teacher == "replay:":
         raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
     if teacher == "human" and not config.record_states:
-        raise ValueError("teacher 'human' needs record_states 1 to render the clips it shows")
+        raise ValueError(
+            "teacher 'human' answers on the labelling page: use `seqrank label online` "
+            "(it also sets record_states 1, which the clips need)"
+        )
     positive = [f.name for f in fields(config) if f.type in ("int", "float")]
     for name in positive:
         if name in ("seed", "unsup_steps", "updates_after_reset", "record_states"):

@@ -164,15 +164,20 @@ class LabelDB:
         seed: int,
         defender_side: str,
         segments: Segments,
+        pool_ids: list[int] | None = None,
     ) -> None:
-        """Store a session and its whole candidate pool, in one transaction."""
+        """Store a session and its whole candidate pool, in one transaction.
+
+        `pool_ids` names the segments (default 0, 1, ...): an import keeps a file's names.
+        """
         with self._transaction() as conn:
             conn.execute(
                 "INSERT INTO sessions VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (run, session, scheme, questions, seed, defender_side, time.time()),
             )
-            for pool_id in range(len(segments.features)):
-                self._insert_segment(conn, run, session, pool_id, segments, pool_id)
+            ids = pool_ids if pool_ids is not None else list(range(len(segments.features)))
+            for row, pool_id in enumerate(ids):
+                self._insert_segment(conn, run, session, pool_id, segments, row)
 
     @staticmethod
     def _insert_segment(

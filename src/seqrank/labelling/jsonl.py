@@ -217,7 +217,7 @@ def import_file(db: LabelDB, path: Path) -> int:
     added = 0
     for run, session, answers in plan:
         names = list(dict.fromkeys(n for a in answers for n in (a["first"], a["second"])))
-        pool = {name: k for k, name in enumerate(names)}
+        pool = _pool_ids(names, run, session)
         defended = [a for a in answers if a.get("defender")]
         side = (
             "left"
@@ -258,6 +258,19 @@ def import_file(db: LabelDB, path: Path) -> int:
             str(survey.get("annotator", "imported")),
         )
     return added
+
+
+def _pool_ids(names: list[str], run: str, session: int) -> dict[str, int]:
+    """Keep `<run>/<session>/<pool id>` names as they are; number any other names in order."""
+    prefix = f"{run}/{session}/"
+    kept = {
+        n: int(n[len(prefix) :])
+        for n in names
+        if n.startswith(prefix) and n[len(prefix) :].isdigit()
+    }
+    if len(kept) == len(names):
+        return kept
+    return {name: k for k, name in enumerate(names)}
 
 
 def _choice(record: dict[str, Any], left: int, first: int) -> str:
