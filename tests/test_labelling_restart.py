@@ -7,6 +7,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -15,9 +16,6 @@ import httpx
 from seqrank.labelling.db import LabelDB
 
 COMMAND = [
-    sys.executable,
-    "-m",
-    "seqrank",
     "label",
     "offline",
     "--task",
@@ -34,8 +32,13 @@ COMMAND = [
 
 
 def start(directory: Path) -> tuple[subprocess.Popen[str], str]:
+    return start_command([*COMMAND, "--out", str(directory)])
+
+
+def start_command(args: list[str]) -> tuple[subprocess.Popen[str], str]:
+    """Start `seqrank ARGS`; returns the process and the page address it printed."""
     process = subprocess.Popen(
-        [*COMMAND, "--out", str(directory)],
+        [sys.executable, "-m", "seqrank", *args],
         stderr=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         text=True,
@@ -46,7 +49,8 @@ def start(directory: Path) -> tuple[subprocess.Popen[str], str]:
     while time.monotonic() < deadline:
         line = process.stderr.readline()
         found = re.search(r"labelling page: (http://\S+)", line)
-        if found:
+        if found:  # keep reading what it prints, so that it never blocks on a full pipe
+            threading.Thread(target=process.stderr.read, daemon=True).start()
             return process, found.group(1).rstrip("/")
         if not line and process.poll() is not None:
             break

@@ -94,6 +94,7 @@ function clipUrl(side) {
 function showQuestion(q) {
   current = q;
   busy = false;
+  shownAt = performance.now(); // restarted when both clips play
   stopCountdown();
   for (const name of ["left", "right"]) {
     const side = q[name];
