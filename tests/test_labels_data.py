@@ -261,3 +261,19 @@ def test_study_report_matches_hand_computed_statistics(tmp_path):
     # two-sided p from the t distribution with 2 degrees of freedom: 1 - |t| / sqrt(t^2 + 2)
     assert test["p"] == pytest.approx(1 - abs(t_value) / np.sqrt(t_value**2 + 2))
     assert "| root |" in (tmp_path / "study-report.md").read_text()
+
+
+def test_offline_pool_rolls_out_a_saved_policy(tmp_path):
+    from seqrank.labelling.app import OfflineOptions, rollout_episodes
+
+    config = tiny_config(steps=1300, max_feedback=10)
+    run = RunDir.create(tmp_path / "run", config, "cpu")
+    options = OfflineOptions(config.task, "root", 5, 1, 50, 2, 0, run.path)
+    with pytest.raises(ValueError, match="has no checkpoint yet"):
+        rollout_episodes(options, lambda text: None)
+    Trainer(config, run).train()
+    store = rollout_episodes(options, lambda text: None)
+    assert len(store) == 2
+    for episode in store.episodes:
+        assert episode.states is not None and len(episode.states) == len(episode.reward) == 1000
+        assert np.abs(episode.action).max() <= 1.0
