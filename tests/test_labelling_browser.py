@@ -112,3 +112,32 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
         server.stop()
         hub.renderer.close()
         hub.db.close()
+
+
+def test_the_survey_form_sends_satisfaction_and_criteria(tmp_path):
+    hub = open_hub(tmp_path / "labels", "dmc:cartpole_swingup", ServerOptions(annotator="p07"))
+    hub.scheme, hub.survey_run = "root", "root"
+    hub.set_phase("survey", "survey about the root method")
+    server = PageServer(hub, ServerOptions(port=0))
+    server.start()
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, server.url)
+            page.wait_for_selector("#survey:not([hidden])", timeout=30_000)
+            page.check("input[name=satisfaction][value='4']")
+            page.fill("#criteria", "distance moved, then posture")
+            page.click("#survey-submit")
+            page.wait_for_function("document.getElementById('error').hidden", timeout=10_000)
+            browser.close()
+        for _ in range(100):
+            if hub.db.survey("root") is not None:
+                break
+            threading.Event().wait(0.05)
+        row = hub.db.survey("root")
+        assert (row["scheme"], row["satisfaction"], row["annotator"]) == ("root", 4, "p07")
+        assert row["criteria"] == "distance moved, then posture"
+    finally:
+        hub.stop.set()
+        server.stop()
+        hub.renderer.close()
+        hub.db.close()

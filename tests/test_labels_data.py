@@ -277,3 +277,48 @@ def test_offline_pool_rolls_out_a_saved_policy(tmp_path):
     for episode in store.episodes:
         assert episode.states is not None and len(episode.states) == len(episode.reward) == 1000
         assert np.abs(episode.action).max() <= 1.0
+
+
+def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question(tmp_path):
+    from seqrank.labelling.human import Stopped
+
+    path = tmp_path / "run"
+    trainer, hub = online_trainer(path, wait=True, steps=2300, max_feedback=20)
+    answerer = Answerer(TestClient(create_app(hub)))
+    # the person answers all of session 1 and 4 questions of session 2, then the server stops
+    # while the 15th question is on screen
+
+    def gate(state):
+        if answerer.answered >= 14:
+            hub.stop.set()
+            return False
+        return True
+
+    answerer.gate = gate
+    answerer.start()
+    with pytest.raises(Stopped):
+        trainer.train()
+    answerer.halt.set()
+    hub.renderer.close()
+    hub.db.close()
+    before = LabelDB.in_dir(path)
+    first_answers = [(q.id, q.first, q.second, a.choice) for q, a in before.answered_questions()]
+    before.close()
+    assert len(first_answers) == 14
+
+    run = RunDir.open(path)
+    hub = open_hub(path, run.read_config().task, ServerOptions(countdown_s=0))
+    resumed = Trainer(run.read_config(), run, source=HumanSource(hub, "online", 3))
+    resumed.load_checkpoint(run.load_checkpoint())
+    answerer = Answerer(TestClient(create_app(hub)))
+    answerer.start()
+    try:
+        summary = resumed.train()
+    finally:
+        answerer.halt.set()
+        hub.stop.set()
+    assert summary["asked"] == 20 and answerer.answered == 6  # only the 6 unanswered
+    after = [(q.id, q.first, q.second, a.choice) for q, a in hub.db.answered_questions()]
+    assert after[:14] == first_answers
+    assert [q.index for q, _ in hub.db.answered_questions()] == list(range(10)) * 2
+    hub.renderer.close()

@@ -49,7 +49,6 @@ class Hub:
     scheme: str = ""
     sessions_total: int = 0
     survey_run: str | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def set_phase(self, phase: str, message: str) -> None:
         self.phase, self.message = phase, message
@@ -125,7 +124,6 @@ class HumanSource:
             asked += 1
             if hub.renderer is not None:
                 hub.renderer.ahead([left, right])
-            hub.extra.update(session=session, questions=questions_total)
             hub.set_phase("asking", f"session {session + 1}: question {index + 1}")
             stored = db.wait_answer(question.id, hub.stop)
             if stored is None:
