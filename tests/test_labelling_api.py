@@ -21,14 +21,22 @@ TASK = "dmc:cartpole_swingup"
 class Page:
     """An offline labelling session of `questions` questions served to a TestClient."""
 
-    def __init__(self, directory: Path, scheme: str, questions: int, token: str | None = None):
+    def __init__(
+        self,
+        directory: Path,
+        scheme: str,
+        questions: int,
+        token: str | None = None,
+        task: str = TASK,
+        segment_length: int = 50,
+    ):
         self.directory = directory
         options = ServerOptions(token=token, countdown_s=3.0, annotator="tester")
-        self.hub = open_hub(directory, TASK, options)
+        self.hub = open_hub(directory, task, options)
         self.client = TestClient(create_app(self.hub))
         if token:
             self.client.headers["X-Seqrank-Token"] = token
-        offline = OfflineOptions(TASK, scheme, questions, 1, 50, 1, 0, None)
+        offline = OfflineOptions(task, scheme, questions, 1, segment_length, 1, 0, None)
         self.done = threading.Event()
         self.error: list[BaseException] = []
 

@@ -39,9 +39,14 @@ PAPER_TASKS = DMC_PAPER_TASKS + METAWORLD_PAPER_TASKS
 FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
+BLOCK_TASKS = ("place",)
+
+
 def canonical_task(name: str) -> tuple[str, str]:
-    """("dmc", "walker_walk") or ("metaworld", "door-open-v3"); ValueError if unknown."""
+    """("dmc", "walker_walk"), ("metaworld", "door-open-v3") or ("block", "place")."""
     suite_name, _, task = name.partition(":") if ":" in name else ("", "", name)
+    if suite_name == "block" and task in BLOCK_TASKS:
+        return "block", task
     if suite_name in ("", "dmc") and task in _dmc_tasks():
         return "dmc", task
     mw_task = task if task.endswith("-v3") else f"{task}-v3"
@@ -50,7 +55,7 @@ def canonical_task(name: str) -> tuple[str, str]:
     raise ValueError(
         f"unknown task {name!r}; accepted: {', '.join(PAPER_TASKS)}, any DMControl "
         "domain_task (e.g. dmc:cartpole_swingup) or Meta-World v3 MT1 task "
-        "(e.g. metaworld:reach-v3)"
+        "(e.g. metaworld:reach-v3), or block:place (the tabletop block-placing task)"
     )
 
 
@@ -70,6 +75,10 @@ def make_env(name: str, seed: int = 0) -> SimEnv:
     suite_name, task = canonical_task(name)
     if suite_name == "dmc":
         return DMCEnv(task, seed)
+    if suite_name == "block":
+        from seqrank.block import BlockPlaceEnv
+
+        return BlockPlaceEnv(seed)
     return MetaWorldEnv(task, seed)
 
 
@@ -78,8 +87,13 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
 
     name: str
     episode_length: int
+    discrete = False  # True: actions are one-hot choices (block:place, learned with DQN)
     _model: Any
     _data: Any
+
+    def canonical_action(self, action: np.ndarray) -> np.ndarray:
+        """The action as stored for learning (block:place turns scores into a one-hot)."""
+        return action
 
     def _set_spaces(self, obs_dim: int, act_dim: int) -> None:
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32)

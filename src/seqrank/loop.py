@@ -96,6 +96,35 @@ def make_source(teacher: str) -> FeedbackSource:
     return ScriptedSource(ScriptedTeacher(teacher_preset(teacher)))
 
 
+def make_agent(config: TrainConfig, env: Any, device: torch.device) -> Any:
+    """SAC for continuous control; DQN (D.1) for discrete tasks such as block:place."""
+    if env.discrete:
+        from seqrank.dqn import DQN, DQNSettings, EpsilonSchedule
+
+        dqn = DQNSettings(
+            config.hidden,
+            config.layers,
+            config.critic_lr,
+            config.discount,
+            config.tau,
+            config.target_update_every,
+            EpsilonSchedule(random_steps=config.seed_steps),
+        )
+        return DQN(env.obs_dim, env.act_dim, dqn, device)
+    settings = SACSettings(
+        config.hidden,
+        config.layers,
+        config.actor_lr,
+        config.critic_lr,
+        config.alpha_lr,
+        config.init_temperature,
+        config.discount,
+        config.tau,
+        config.target_update_every,
+    )
+    return SAC(env.obs_dim, env.act_dim, settings, device)
+
+
 class Trainer:
     def __init__(
         self,
@@ -122,18 +151,7 @@ class Trainer:
                 "--seed-steps or --unsup-steps"
             )
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
-        settings = SACSettings(
-            config.hidden,
-            config.layers,
-            config.actor_lr,
-            config.critic_lr,
-            config.alpha_lr,
-            config.init_temperature,
-            config.discount,
-            config.tau,
-            config.target_update_every,
-        )
-        self.agent = SAC(obs_dim, act_dim, settings, self.device)
+        self.agent = make_agent(config, self.env, self.device)
         self.reward_model = RewardModel(
             config.reward_ensemble,
             obs_dim + act_dim,
@@ -201,6 +219,7 @@ class Trainer:
         next_obs: np.ndarray,
         terminated: bool,
     ) -> None:
+        action = self.env.canonical_action(action)
         learned = self.reward_model.reward_numpy(obs, action) if self.counters.sessions else 0.0
         self.replay.add(obs, action, reward, learned, next_obs, terminated)
         for key, value in (("obs", obs), ("action", action), ("reward", reward)):
@@ -382,7 +401,7 @@ class Trainer:
                 "eval_success_rate": c.last_eval_success,
                 "total_asked": c.asked,
                 "total_inferred": c.inferred,
-                "alpha": float(self.agent.alpha.detach()),
+                **self.agent.eval_metrics(),
                 "steps_per_second": c.step / max(c.train_seconds, 1e-9),
                 "wall_seconds": c.train_seconds,
             }

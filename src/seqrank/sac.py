@@ -103,6 +103,9 @@ class SAC:
     def alpha(self) -> torch.Tensor:
         return self.log_alpha.exp()
 
+    def eval_metrics(self) -> dict[str, float]:
+        return {"alpha": float(self.alpha.detach())}
+
     @torch.no_grad()
     def act(self, obs: Any, deterministic: bool, generator: torch.Generator) -> Any:
         obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device).unsqueeze(0)

@@ -169,9 +169,7 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
     import torch
 
     env = make_env(options.task, options.seed)
-    agent = (
-        _saved_policy(options.policy_run, env.obs_dim, env.act_dim) if options.policy_run else None
-    )
+    agent = _saved_policy(options.policy_run, env) if options.policy_run else None
     rng = np.random.default_rng([options.seed, 3])
     generator = torch.Generator().manual_seed(options.seed)
     store = EpisodeStore(options.episodes)
@@ -184,6 +182,7 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
                 action = rng.uniform(-1.0, 1.0, env.act_dim).astype(np.float32)
             else:
                 action = agent.act(obs, False, generator)
+            action = env.canonical_action(action)
             columns["states"].append(env.get_state())
             next_obs, reward, terminated, truncated, _ = env.step(action)
             for key, value in (("obs", obs), ("action", action), ("reward", reward)):
@@ -203,29 +202,17 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
     return store
 
 
-def _saved_policy(run_dir: Path, obs_dim: int, act_dim: int) -> Any:
+def _saved_policy(run_dir: Path, env: Any) -> Any:
+    import torch
+
+    from seqrank.loop import make_agent
     from seqrank.runs import RunDir
-    from seqrank.sac import SAC, SACSettings
 
     run = RunDir.open(run_dir)
-    config = run.read_config()
     state = run.load_checkpoint()
     if state is None:
         raise ValueError(f"{run_dir} has no checkpoint yet, so it has no policy to roll out")
-    import torch
-
-    settings = SACSettings(
-        config.hidden,
-        config.layers,
-        config.actor_lr,
-        config.critic_lr,
-        config.alpha_lr,
-        config.init_temperature,
-        config.discount,
-        config.tau,
-        config.target_update_every,
-    )
-    agent = SAC(obs_dim, act_dim, settings, torch.device("cpu"))
+    agent = make_agent(run.read_config(), env, torch.device("cpu"))
     agent.load_state_dict(state["agent"])
     return agent
 

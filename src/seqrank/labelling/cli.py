@@ -51,7 +51,9 @@ def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]
     offline.add_argument("--scheme", choices=tuple(SCHEMES), default="sequential")
     offline.add_argument("--questions", type=_positive, default=10, help="per session (10)")
     offline.add_argument("--sessions", type=_positive, default=1, help="(1)")
-    offline.add_argument("--segment-length", type=_positive, default=50, help="steps (50)")
+    offline.add_argument(
+        "--segment-length", type=_positive, help="steps (the task's: 50, block:place 30)"
+    )
     offline.add_argument("--episodes", type=_positive, default=4, help="episodes rolled out (4)")
     offline.add_argument("--seed", type=int, default=0)
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
@@ -178,12 +180,15 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
         task = check_task_name(args.task)
         default_out = Path("seqrank-out/labels") / task.replace(":", "-")
     directory = args.out or default_out
+    from seqrank.config import resolve_config
+
+    length = args.segment_length or resolve_config(task, "small", {}).segment_length
     options = OfflineOptions(
         task,
         args.scheme,
         args.questions,
         args.sessions,
-        args.segment_length,
+        length,
         args.episodes,
         args.seed,
         args.policy_run,

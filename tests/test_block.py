@@ -1,0 +1,159 @@
+"""block:place (supplementary D.1): geometry, success rule, epsilon schedule, DQN, clips."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from seqrank.block import (
+    BLOCK_HALF,
+    EPISODE_STEPS,
+    GOAL,
+    START_LOW,
+    START_SIZE,
+    TABLE_DEPTH,
+    TABLE_WIDTH,
+    BlockPlaceEnv,
+    KinematicDriver,
+    direction_of,
+    one_hot,
+)
+from seqrank.buffer import Batch
+from seqrank.config import resolve_config
+from seqrank.dqn import DQN, DQNSettings, EpsilonSchedule
+from seqrank.envs import make_env
+
+
+def test_geometry_matches_the_paper():
+    assert (TABLE_WIDTH, TABLE_DEPTH) == (0.70, 0.60)
+    env = make_env("block:place", 0)
+    assert isinstance(env, BlockPlaceEnv) and env.discrete
+    assert (env.obs_dim, env.act_dim, env.episode_length) == (5, 8, 50)
+    starts = []
+    for seed in range(300):
+        env.reset(seed=seed)
+        starts.append(env.position.copy())
+    starts = np.array(starts)
+    # the start square: 20 x 20 cm in the top-left corner, filled uniformly
+    assert np.all(starts >= START_LOW) and np.all(starts <= START_LOW + START_SIZE)
+    assert starts[:, 0].max() - starts[:, 0].min() > 0.18
+    assert starts[:, 1].min() >= TABLE_DEPTH - 0.2 - 2 * BLOCK_HALF  # top
+    assert starts[:, 0].max() <= 0.2 + 2 * BLOCK_HALF  # left
+    assert GOAL[0] > TABLE_WIDTH - 0.1 and GOAL[1] < 0.1  # bottom right
+
+
+@pytest.mark.parametrize("direction", range(8))
+def test_each_action_moves_5_cm_in_its_direction(direction):
+    driver = KinematicDriver()
+    start = np.array([0.35, 0.30])
+    driver.place(start)
+    moved = driver.push(direction) - start
+    angle = direction * math.pi / 4
+    assert np.allclose(moved, [0.05 * math.cos(angle), 0.05 * math.sin(angle)])
+
+
+def test_pushes_stop_at_the_table_edge():
+    driver = KinematicDriver()
+    driver.place(np.array([0.03, 0.57]))
+    assert np.allclose(driver.push(4), [BLOCK_HALF, 0.57])  # left: stops at the edge
+    assert np.allclose(driver.push(2), [BLOCK_HALF, TABLE_DEPTH - BLOCK_HALF])  # up
+    assert np.allclose(driver.push(3), [BLOCK_HALF, TABLE_DEPTH - BLOCK_HALF])  # up-left corner
+
+
+def test_success_within_3_cm_then_the_block_stays():
+    env = BlockPlaceEnv()
+    env.reset(seed=0)
+    env.set_state(np.array([GOAL[0] - 0.055, GOAL[1], 0.0, 0.0]))  # 5.5 cm left of the goal
+    _, reward, terminated, truncated, info = env.step(one_hot(0))  # 5 cm right: 0.5 cm off
+    assert info["success"] and reward == 0.0 and not terminated and not truncated
+    _, reward, *_, info = env.step(one_hot(4))
+    assert info["success"] and np.allclose(env.position, [GOAL[0] - 0.005, GOAL[1]])
+    env.set_state(np.array([GOAL[0] - 0.085, GOAL[1], 0.0, 0.0]))  # 3.5 cm after a push
+    _, reward, *_, info = env.step(one_hot(0))
+    assert not info["success"] and reward == pytest.approx(-10 * 0.035)
+
+
+def test_episodes_last_50_steps_and_states_replay():
+    env = BlockPlaceEnv()
+    env.reset(seed=4)
+    states, truncated, steps = [], False, 0
+    while not truncated:
+        states.append(env.get_state())
+        _, _, terminated, truncated, _ = env.step(np.random.default_rng(steps).random(8))
+        steps += 1
+        assert not terminated
+    assert steps == EPISODE_STEPS
+    frames = env.render_states(np.array(states[:30]), None, 96, 96)
+    assert frames.shape == (30, 96, 96, 3) and frames.dtype == np.uint8
+    env.set_state(states[7])
+    assert np.array_equal(env.render_frame(96, 96), frames[7])
+    assert not np.array_equal(frames[0], frames[29])  # the block moved
+
+
+def test_bad_actions_are_named():
+    with pytest.raises(ValueError, match="8 action scores"):
+        direction_of(np.zeros(3))
+    with pytest.raises(ValueError, match="direction 9"):
+        direction_of(9)
+
+
+def test_epsilon_schedule_of_d1():
+    schedule = EpsilonSchedule()
+    assert [schedule.at(s) for s in (0, 999)] == [1.0, 1.0]
+    assert schedule.at(1000) == 0.5 and schedule.at(1099) == 0.5
+    assert schedule.at(1100) == pytest.approx(0.49)
+    assert schedule.at(1200) == pytest.approx(0.5 * 0.98**2)
+    assert schedule.at(1000 + 100 * 79) == pytest.approx(0.5 * 0.98**79)  # 0.1015
+    assert schedule.at(1000 + 100 * 80) == 0.1 and schedule.at(10**6) == 0.1
+
+
+def test_dqn_explores_by_the_schedule_and_learns_a_one_step_bandit():
+    settings = DQNSettings(32, 2, 1e-2, 0.0, 1.0, 1, EpsilonSchedule(random_steps=0))
+    agent = DQN(3, 4, settings, torch.device("cpu"))
+    generator = torch.Generator().manual_seed(0)
+    obs = torch.zeros(64, 3)
+    action = torch.eye(4)[torch.arange(64) % 4]
+    reward = (action.argmax(1) == 2).float().unsqueeze(1)  # action 2 pays
+    batch = Batch(obs, action, reward, obs, torch.zeros(64, 1))
+    for _ in range(300):
+        agent.update(batch, generator)
+    assert np.argmax(agent.act(np.zeros(3), True, generator)) == 2
+    assert agent.epsilon == 0.5
+    picks = [np.argmax(agent.act(np.zeros(3), False, generator)) for _ in range(400)]
+    # epsilon 0.5 decaying to 0.5 * 0.98^3: greedy, or random and right a quarter of the time
+    assert 0.55 < np.mean(np.array(picks) == 2) < 0.72  # expected 1 - 0.75 * 0.485 = 0.64
+
+
+def test_presets_follow_table_4():
+    paper = resolve_config("block:place", "paper", {})
+    assert (paper.critic_lr, paper.reward_lr, paper.feedback_frequency) == (1e-6, 1e-6, 200)
+    assert (paper.reward_batch, paper.segment_length, paper.seed_steps) == (50, 30, 1000)
+    assert paper.steps - paper.seed_steps == 3000
+    with pytest.raises(ValueError, match="block:place learns with DQN"):
+        resolve_config("block:place", "small", {"backbone": "mrn"})
+
+
+def test_the_labelling_page_shows_top_down_block_clips(tmp_path):
+    import io
+
+    import av
+
+    from test_labelling_api import Page
+
+    page = Page(tmp_path / "labels", "root", 3, task="block:place", segment_length=30)
+    try:
+        question = page.question()
+        reply = page.client.get(question["left"]["clip"])
+        assert reply.status_code == 200
+        with av.open(io.BytesIO(reply.content)) as container:
+            frames = list(container.decode(container.streams.video[0]))
+        assert len(frames) == 30
+        for choice in ("left", "right", "equal"):
+            page.answer(choice)
+        page.done.wait(10)
+        assert [a.choice for _, a in page.hub.db.answered_questions()] == ["left", "right", "equal"]
+    finally:
+        page.close()
