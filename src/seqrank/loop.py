@@ -256,7 +256,8 @@ class Trainer:
             or (budget_left and c.step - c.last_session_step >= config.feedback_frequency)
         ):
             self._feedback()
-        if config.backbone == "mrn" and budget_left and c.step % config.meta_update_frequency == 0:
+        meta_step = c.step % config.meta_update_frequency == 0 and len(self.labels) > 0
+        if config.backbone == "mrn" and budget_left and meta_step:
             self._meta_update()
         else:
             self.agent.update(self.replay.sample(config.batch, self.generator), self.generator)
@@ -305,7 +306,9 @@ class Trainer:
         c.inferred += stats.inferred
         c.inferred_wrong += stats.inferred_wrong or 0
         c.last_session_step = c.step
-        result = self._train_reward()
+        # every answer so far may be a skip (B-Pref's skip teacher on all-negative returns):
+        # then there is nothing to fit yet, and the reward model stays as it is
+        result = self._train_reward() if len(self.labels) else None
         self.replay.relabel(self.reward_model.reward)
         if first:
             self.agent.reset_critic()
@@ -331,9 +334,9 @@ class Trainer:
                 "total_inferred": c.inferred,
                 "total_inferred_wrong": c.inferred_wrong,
                 "total_pairs": len(self.labels),
-                "reward_epochs": result.epochs,
-                "reward_loss": result.loss,
-                "reward_train_accuracy": result.accuracy,
+                "reward_epochs": result.epochs if result else 0,
+                "reward_loss": result.loss if result else None,
+                "reward_train_accuracy": result.accuracy if result else None,
                 **self._reward_quality(c.sessions),
             }
         )
