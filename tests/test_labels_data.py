@@ -322,3 +322,25 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
     assert after[:14] == first_answers
     assert [q.index for q, _ in hub.db.answered_questions()] == list(range(10)) * 2
     hub.renderer.close()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["label", "offline", "--task", "nope"], "unknown task 'nope'"),
+        (["label", "online", "--countdown", "-1"], "--countdown -1.0"),
+        (["label", "online", "--teacher", "oracle"], "the labelling page's teacher is the person"),
+        (["label", "study", "--participant", "p", "--methods", "root,foo"], "distinct schemes"),
+        (["label", "study", "--participant", "p", "--scheme", "root"], "drop --resume/--out"),
+        (["labels", "export", "/nowhere", "-o", "x.jsonl"], "holds no labels.sqlite"),
+        (["study-report", "/nowhere"], "holds no participant"),
+    ],
+)
+def test_bad_labelling_commands_name_the_problem_and_create_nothing(
+    tmp_path, monkeypatch, capsys, args, message
+):
+    monkeypatch.chdir(tmp_path)
+    out = [] if args[0] != "label" or args[1] != "online" else ["--out", str(tmp_path / "run")]
+    assert main([*args, *out]) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

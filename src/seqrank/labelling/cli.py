@@ -133,6 +133,7 @@ def run_label(args: argparse.Namespace, out: Console, err: Console) -> int:
     def say(text: str) -> None:
         err.print(text, highlight=False)
 
+    _server(args)  # check the page options before anything is created
     try:
         if args.mode == "offline":
             return _offline(args, say)
