@@ -150,6 +150,9 @@ class BlockPlaceEnv(SimEnv):
         self.position = self.driver.place(np.asarray(state[:2], np.float64))
         self.placed, self.t = bool(state[2]), int(state[3])
 
+    def use_fast_rendering(self) -> None:
+        """The drawing is already cheap."""
+
     def render_frame(self, width: int = 128, height: int = 128) -> np.ndarray:
         return draw_table(self.position, self.placed, width, height)
 

@@ -125,6 +125,9 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
             renderer = mujoco.Renderer(self._model, height, width)
             self._renderers[(width, height)] = renderer
         renderer.update_scene(self._data, camera=self._camera)
+        if self._fast_rendering:
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
         frame = renderer.render()
         return frame[::-1].copy() if self._flip else frame
 
@@ -144,6 +147,13 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
 
     _camera: int | str = 0
     _flip = False
+    _fast_rendering = False
+
+    def use_fast_rendering(self) -> None:
+        """No shadows, reflections or anti-aliasing: about 8x faster (labelling clips)."""
+        self._fast_rendering = True
+        self._model.vis.quality.offsamples = 0
+        self.close()  # renderers made from now on use the model's new settings
 
     def close(self) -> None:
         for renderer in self._renderers.values():

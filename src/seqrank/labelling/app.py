@@ -115,6 +115,7 @@ def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
 
     def make_frames() -> Callable[[int], np.ndarray]:
         env = make_env(task, 0)
+        env.use_fast_rendering()
 
         def frames(segment_id: int) -> np.ndarray:
             row = db.segment(segment_id)
