@@ -1,0 +1,197 @@
+"""Running a sweep: each run in its own process (local pool or Ray), with retries.
+
+A finished run (its `summary.json` exists) is skipped; a killed run resumes from its last
+checkpoint; a failed run is tried again `retries` times and then reported, never dropped.
+`<out>/sweep.json` records every run's state after each event, atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from seqrank.sweeps.spec import PlannedRun, Sweep
+
+ENGINES = ("local", "ray")
+
+
+def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]:
+    """Train (or finish, or skip) one run; runs inside a worker process."""
+    import torch
+
+    from seqrank.config import TrainConfig
+    from seqrank.loop import Trainer
+    from seqrank.runs import RunDir
+
+    torch.set_num_threads(threads)
+    directory = Path(path)
+    if (directory / "summary.json").exists():
+        return {
+            "status": "skipped",
+            "summary": json.loads((directory / "summary.json").read_text()),
+        }
+    settings = TrainConfig(**config)
+    if (directory / "config.json").exists():
+        run = RunDir.open(directory)
+        if run.read_config() != settings:
+            raise ValueError(f"{directory} holds a run with other settings; move it away")
+        trainer = Trainer(settings, run)
+        state = run.load_checkpoint()
+        if state is not None:
+            trainer.load_checkpoint(state)
+        else:
+            run.truncate_metrics(0)
+        status = "resumed"
+    else:
+        run = RunDir.create(directory, settings, settings.device)
+        trainer = Trainer(settings, run)
+        status = "trained"
+    return {"status": status, "summary": trainer.train()}
+
+
+@dataclass
+class RunState:
+    name: str
+    state: str = "pending"  # pending | running | trained | resumed | skipped | failed
+    attempts: int = 0
+    error: str | None = None
+    final_eval_return: float | None = None
+
+
+@dataclass
+class SweepStatus:
+    runs: dict[str, RunState] = field(default_factory=dict)
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for run in self.runs.values():
+            out[run.state] = out.get(run.state, 0) + 1
+        return out
+
+
+Event = Callable[[SweepStatus, RunState], None]
+
+
+class _Backend:
+    def submit(self, run: PlannedRun, path: Path) -> Any: ...
+    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]: ...
+    def close(self) -> None: ...
+
+
+class LocalBackend(_Backend):
+    """A process pool (spawned processes: no GL or torch state shared), one thread per run."""
+
+    def __init__(self, workers: int):
+        context = multiprocessing.get_context("spawn")
+        self.pool = ProcessPoolExecutor(workers, mp_context=context)
+        self.pending: set[Future[dict[str, Any]]] = set()
+
+    def submit(self, run: PlannedRun, path: Path) -> Any:
+        future = self.pool.submit(train_run, str(path), run.config.as_dict(), 1)
+        self.pending.add(future)
+        return future
+
+    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]:
+        finished, self.pending = wait(self.pending, return_when=FIRST_COMPLETED)
+        for future in finished:
+            error = future.exception()
+            if error is None:
+                yield future, future.result(), None
+            else:
+                yield future, None, "".join(traceback.format_exception_only(error)).strip()
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class RayBackend(_Backend):
+    """Ray tasks with per-run CPU and GPU fractions (several runs can share one GPU)."""
+
+    def __init__(
+        self, address: str | None, workers: int, cpus: float, gpus: float, temp: Path | None
+    ):
+        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        import ray
+
+        self.ray = ray
+        options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address is None:
+            options["num_cpus"] = workers
+            if temp is not None:
+                options["_temp_dir"] = str(temp)
+        ray.init(address=address, **options)
+        self.task = ray.remote(num_cpus=cpus, num_gpus=gpus, max_retries=0)(train_run)
+        self.pending: list[Any] = []
+
+    def submit(self, run: PlannedRun, path: Path) -> Any:
+        ref = self.task.remote(str(path.resolve()), run.config.as_dict(), 1)
+        self.pending.append(ref)
+        return ref
+
+    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]:
+        ready, self.pending = self.ray.wait(self.pending, num_returns=1)
+        for ref in ready:
+            try:
+                yield ref, self.ray.get(ref), None
+            except self.ray.exceptions.RayError as error:
+                cause = getattr(error, "cause", None) or error
+                yield ref, None, f"{type(cause).__name__}: {cause}".splitlines()[0]
+
+    def close(self) -> None:
+        self.ray.shutdown()
+
+
+def run_sweep(sweep: Sweep, backend: _Backend, on_event: Event | None = None) -> SweepStatus:
+    """Run every planned run to completion or failure; returns the final status."""
+    runs_dir = sweep.out / "runs"
+    status = SweepStatus({r.name: RunState(r.name) for r in sweep.runs})
+    by_handle: dict[Any, PlannedRun] = {}
+
+    def start(run: PlannedRun) -> None:
+        state = status.runs[run.name]
+        state.state, state.attempts = "running", state.attempts + 1
+        by_handle[backend.submit(run, runs_dir / run.name)] = run
+
+    try:
+        for run in sweep.runs:
+            start(run)
+        _save(sweep, status)
+        while by_handle:
+            for handle, result, error in backend.done():
+                run = by_handle.pop(handle)
+                state = status.runs[run.name]
+                if error is None and result is not None:
+                    state.state, state.error = result["status"], None
+                    state.final_eval_return = result["summary"].get("final_eval_return")
+                elif state.attempts <= sweep.retries:
+                    state.error = error
+                    start(run)
+                else:
+                    state.state, state.error = "failed", error
+                _save(sweep, status)
+                if on_event is not None:
+                    on_event(status, state)
+    finally:
+        backend.close()
+    return status
+
+
+def _save(sweep: Sweep, status: SweepStatus) -> None:
+    sweep.out.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "name": sweep.name,
+        "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "counts": status.counts(),
+        "runs": [vars(r) for r in status.runs.values()],
+    }
+    partial = sweep.out / "sweep.json.part"
+    partial.write_text(json.dumps(payload, indent=2))
+    partial.replace(sweep.out / "sweep.json")

@@ -1,0 +1,211 @@
+"""Sweep files: a grid of training runs in TOML.
+
+```toml
+name = "walker-pebble"            # optional; names the output folder
+out = "seqrank-out/sweeps/walker" # optional; default seqrank-out/sweeps/<name>
+scale = "small"                   # optional: auto (default), paper, small
+device = "cpu"                    # optional: auto (default), cpu, cuda
+tasks = ["walker_walk", "cheetah_run"]
+schemes = ["pairwise", "sequential", "root"]
+backbones = ["pebble"]            # optional, default ["pebble"]
+teachers = ["oracle"]             # optional, default ["oracle"]
+seeds = 3                         # a count (0, 1, 2) or a list [0, 5, 7]
+retries = 1                       # optional: attempts after a failure, default 1
+
+[overrides]                       # any `seqrank train` setting, for every run
+steps = 100000
+
+[task_overrides.cheetah_run]      # settings for one task's runs
+max_feedback = 200
+
+[[variants]]                      # optional extra axis: named groups of settings
+name = "q100"
+max_feedback = 100
+```
+
+Every run is one `seqrank train` run directory: `<out>/runs/<task>/<scheme>_<backbone>_
+<teacher>[_<variant>]_seed<seed>`. Expansion checks every run's settings up front, so a bad
+value is reported before anything starts.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, fields
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+from seqrank.config import TrainConfig, resolve_config
+
+TOP_KEYS = (
+    "name",
+    "out",
+    "scale",
+    "device",
+    "tasks",
+    "schemes",
+    "backbones",
+    "teachers",
+    "seeds",
+    "retries",
+    "overrides",
+    "task_overrides",
+    "variants",
+)
+AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
+SETTINGS = {f.name for f in fields(TrainConfig)} - {"task", "scheme", "backbone", "teacher", "seed"}
+_KIND = {f.name: str(f.type) for f in fields(TrainConfig)}
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    name: str  # relative path under <out>/runs
+    config: TrainConfig
+
+
+@dataclass(frozen=True)
+class Sweep:
+    name: str
+    out: Path
+    runs: tuple[PlannedRun, ...]
+    retries: int
+    device: str
+
+
+def load_sweep(path: Path) -> Sweep:
+    """Parse and expand a sweep file; ValueError names the file, the key and what is accepted."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"sweep file {path} does not exist")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path}: not valid TOML ({error})") from None
+    return expand(data, str(path))
+
+
+def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
+    unknown = sorted(set(data) - set(TOP_KEYS))
+    if unknown:
+        raise ValueError(f"{source}: unknown key {unknown[0]!r}; accepted: {', '.join(TOP_KEYS)}")
+    axes = {key: _names(data, key, source) for key in AXES}
+    seeds = _seeds(data.get("seeds", 1), source)
+    retries = data.get("retries", 1)
+    if not isinstance(retries, int) or retries < 0:
+        raise ValueError(f"{source}: retries must be a whole number >= 0, got {retries!r}")
+    scale = data.get("scale", "auto")
+    if scale not in ("auto", "paper", "small"):
+        raise ValueError(f"{source}: scale {scale!r}; accepted: auto, paper, small")
+    device = data.get("device", "auto")
+    overrides = _settings(data.get("overrides", {}), f"{source} [overrides]")
+    per_task = data.get("task_overrides", {})
+    if not isinstance(per_task, dict):
+        raise ValueError(f"{source}: task_overrides must be a table of tables")
+    strays = sorted(set(per_task) - set(axes["tasks"]))
+    if strays:
+        raise ValueError(f"{source}: task_overrides.{strays[0]} names a task not in tasks")
+    variants = _variants(data.get("variants", []), source)
+    if scale == "auto":
+        from seqrank.loop import resolve_device
+
+        scale = "paper" if resolve_device(device).type == "cuda" else "small"
+    runs = []
+    for task, scheme, backbone, teacher, (variant, extra), seed in product(
+        axes["tasks"], axes["schemes"], axes["backbones"], axes["teachers"], variants, seeds
+    ):
+        settings = {
+            **overrides,
+            **_settings(per_task.get(task, {}), f"{source} [task_overrides.{task}]"),
+            **extra,
+            "scheme": scheme,
+            "backbone": backbone,
+            "teacher": teacher,
+            "seed": seed,
+            "device": device,
+        }
+        where = f"{source}: run {task} {scheme} {backbone} {teacher} {variant or ''} seed {seed}"
+        try:
+            config = resolve_config(task, scale, settings)
+        except (ValueError, TypeError) as problem:
+            raise ValueError(f"{where}: {problem}") from None
+        suffix = f"_{variant}" if variant else ""
+        folder = task.replace(":", "-")
+        runs.append(
+            PlannedRun(f"{folder}/{scheme}_{backbone}_{teacher}{suffix}_seed{seed}", config)
+        )
+    name = str(data.get("name", Path(source).stem))
+    out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
+    return Sweep(name, out, tuple(runs), retries, device)
+
+
+def _names(data: dict[str, Any], key: str, source: str) -> list[str]:
+    defaults = {"backbones": ["pebble"], "teachers": ["oracle"]}
+    if key not in data and key not in defaults:
+        raise ValueError(f"{source}: {key} is required (a list, e.g. {key} = [...])")
+    values = data.get(key, defaults.get(key))
+    if not isinstance(values, list) or not values or not all(isinstance(v, str) for v in values):
+        raise ValueError(f"{source}: {key} must be a non-empty list of names, got {values!r}")
+    if len(set(values)) != len(values):
+        raise ValueError(f"{source}: {key} lists a name twice: {values!r}")
+    return values
+
+
+def _seeds(value: Any, source: str) -> list[int]:
+    if isinstance(value, bool):
+        raise ValueError(f"{source}: seeds must be a count or a list of whole numbers")
+    if isinstance(value, int):
+        if value < 1:
+            raise ValueError(f"{source}: seeds = {value}: a count must be at least 1")
+        return list(range(value))
+    if (
+        isinstance(value, list)
+        and value
+        and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
+        and len(set(value)) == len(value)
+    ):
+        return list(value)
+    raise ValueError(
+        f"{source}: seeds = {value!r}: give a count or a list of distinct whole numbers >= 0"
+    )
+
+
+def _settings(table: Any, where: str) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise ValueError(f"{where}: must be a table of settings")
+    unknown = sorted(set(table) - SETTINGS)
+    if unknown:
+        raise ValueError(
+            f"{where}: unknown setting {unknown[0]!r}; settings are `seqrank train` options "
+            "(task, scheme, backbone, teacher and seed are sweep axes)"
+        )
+    for key, value in table.items():
+        kind = _KIND[key]
+        ok = {
+            "int": isinstance(value, int) and not isinstance(value, bool),
+            "float": isinstance(value, int | float) and not isinstance(value, bool),
+            "str": isinstance(value, str),
+        }[kind]
+        if not ok:
+            raise ValueError(
+                f"{where}: {key} = {value!r} is not a{'n' if kind == 'int' else ''} {kind}"
+            )
+    return dict(table)
+
+
+def _variants(value: Any, source: str) -> list[tuple[str | None, dict[str, Any]]]:
+    if value == []:
+        return [(None, {})]
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise ValueError(f"{source}: variants must be a list of tables ([[variants]])")
+    out: list[tuple[str | None, dict[str, Any]]] = []
+    for k, table in enumerate(value):
+        name = table.get("name")
+        if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
+            raise ValueError(f"{source}: variant {k + 1} needs a name of letters, digits, - or _")
+        settings = {key: v for key, v in table.items() if key != "name"}
+        out.append((name, _settings(settings, f"{source} [[variants]] {name}")))
+    names = [n for n, _ in out]
+    if len(set(names)) != len(names):
+        raise ValueError(f"{source}: two variants are called the same: {names!r}")
+    return out

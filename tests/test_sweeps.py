@@ -1,0 +1,175 @@
+"""Sweep files, the local and Ray engines, retries and resuming."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from seqrank.sweeps.engines import LocalBackend, RayBackend, run_sweep
+from seqrank.sweeps.spec import expand, load_sweep
+
+TINY = {
+    "steps": 1800,
+    "seed_steps": 300,
+    "unsup_steps": 900,
+    "feedback_frequency": 500,
+    "max_feedback": 20,
+    "reward_batch": 10,
+    "hidden": 32,
+    "batch": 32,
+    "reward_hidden": 32,
+    "reward_epochs": 5,
+    "eval_every": 900,
+    "eval_episodes": 1,
+    "checkpoint_every": 1000,
+    "heldout_pairs": 50,
+}
+
+
+def tiny_sweep(out, **extra):
+    data = {
+        "out": str(out),
+        "device": "cpu",
+        "tasks": ["dmc:cartpole_swingup"],
+        "schemes": ["pairwise", "root"],
+        "seeds": 1,
+        "overrides": dict(TINY),
+    }
+    data.update(extra)
+    return expand(data)
+
+
+def test_expansion_covers_the_grid_with_names_and_settings(tmp_path):
+    sweep = expand(
+        {
+            "tasks": ["walker_walk", "cheetah_run"],
+            "schemes": ["pairwise", "sequential", "root"],
+            "teachers": ["oracle", "mistake"],
+            "seeds": [0, 4],
+            "device": "cpu",
+            "overrides": {"steps": 100_000},
+            "task_overrides": {"cheetah_run": {"max_feedback": 200}},
+            "variants": [{"name": "q60", "max_feedback": 60}, {"name": "base"}],
+        }
+    )
+    assert len(sweep.runs) == 2 * 3 * 2 * 2 * 2
+    names = {r.name for r in sweep.runs}
+    assert "cheetah_run/root_pebble_mistake_q60_seed4" in names
+    by_name = {r.name: r.config for r in sweep.runs}
+    assert by_name["cheetah_run/root_pebble_mistake_q60_seed4"].max_feedback == 60
+    assert by_name["cheetah_run/root_pebble_mistake_base_seed4"].max_feedback == 200
+    assert by_name["walker_walk/pairwise_pebble_oracle_base_seed0"].max_feedback == 100  # preset
+    assert all(r.config.steps == 100_000 and r.config.scale == "small" for r in sweep.runs)
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"schemes": ["root"]}, "tasks is required"),
+        ({"tasks": [], "schemes": ["root"]}, "tasks must be a non-empty list"),
+        ({"tasks": ["walker_walk"], "schemes": ["root", "root"]}, "lists a name twice"),
+        ({"tasks": ["walker_walk"], "schemes": ["best"]}, "unknown scheme 'best'"),
+        ({"tasks": ["walkr"], "schemes": ["root"]}, "unknown task 'walkr'"),
+        ({"tasks": ["walker_walk"], "schemes": ["root"], "seeds": 0}, "at least 1"),
+        ({"tasks": ["walker_walk"], "schemes": ["root"], "seeds": [1, 1]}, "distinct"),
+        ({"tasks": ["walker_walk"], "schemes": ["root"], "retries": -1}, "retries"),
+        ({"tasks": ["walker_walk"], "schemes": ["root"], "engine": "x"}, "unknown key 'engine'"),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"stepz": 1}},
+            "unknown setting 'stepz'",
+        ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"steps": 1.5}},
+            "steps = 1.5 is not an int",
+        ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"seed": 3}},
+            "sweep axes",
+        ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "task_overrides": {"hopper_hop": {}}},
+            "names a task not in tasks",
+        ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "variants": [{"max_feedback": 2}]},
+            "needs a name",
+        ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"max_feedback": 0}},
+            "max_feedback must be positive",
+        ),
+    ],
+)
+def test_bad_sweep_files_name_the_problem(data, message):
+    with pytest.raises(ValueError, match=message):
+        expand({"device": "cpu", **data})
+
+
+def test_sweep_file_must_exist_and_be_toml(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        load_sweep(tmp_path / "none.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("tasks = [")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        load_sweep(bad)
+
+
+def test_local_engine_runs_skips_resumes_and_reports_failures(tmp_path):
+    sweep = tiny_sweep(tmp_path / "sweep")
+    status = run_sweep(sweep, LocalBackend(2))
+    assert {r.state for r in status.runs.values()} == {"trained"}
+    summaries = {
+        r.name: json.loads((sweep.out / "runs" / r.name / "summary.json").read_text())
+        for r in sweep.runs
+    }
+    assert {s["scheme"] for s in summaries.values()} == {"pairwise", "root"}
+    assert all(s["asked"] == 20 for s in summaries.values())
+    # a second start redoes nothing; a run killed before it finished resumes
+    killed = sweep.out / "runs" / sweep.runs[1].name
+    (killed / "summary.json").unlink()
+    stamp = os.stat(sweep.out / "runs" / sweep.runs[0].name / "summary.json").st_mtime_ns
+    status = run_sweep(sweep, LocalBackend(2))
+    assert status.runs[sweep.runs[0].name].state == "skipped"
+    assert status.runs[sweep.runs[1].name].state == "resumed"
+    assert os.stat(sweep.out / "runs" / sweep.runs[0].name / "summary.json").st_mtime_ns == stamp
+    recorded = json.loads((sweep.out / "sweep.json").read_text())
+    assert recorded["counts"] == {"skipped": 1, "resumed": 1}
+
+
+def test_failures_are_retried_then_reported(tmp_path):
+    sweep = tiny_sweep(tmp_path / "sweep", retries=2)
+    broken = sweep.runs[0]
+    (sweep.out / "runs" / broken.name).mkdir(parents=True)
+    (sweep.out / "runs" / broken.name / "config.json").write_text("{not json")
+    status = run_sweep(sweep, LocalBackend(2))
+    failed = status.runs[broken.name]
+    assert failed.state == "failed" and failed.attempts == 3 and "JSON" in failed.error
+    assert status.runs[sweep.runs[1].name].state == "trained"
+    assert json.loads((sweep.out / "sweep.json").read_text())["counts"] == {
+        "failed": 1,
+        "trained": 1,
+    }
+
+
+def test_ray_engine_runs_a_tiny_sweep_and_cleans_up(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    import ray
+
+    # a throwaway local cluster: no token file in ~/.ray, session files in a short temp dir
+    # (Ray's socket paths must stay under 108 bytes)
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
+    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")
+    temp = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))
+    try:
+        sweep = tiny_sweep(tmp_path / "sweep")
+        status = run_sweep(sweep, RayBackend(None, 2, 1.0, 0.0, temp))
+        assert {r.state for r in status.runs.values()} == {"trained"}
+        assert not ray.is_initialized()
+        assert all((sweep.out / "runs" / r.name / "summary.json").exists() for r in sweep.runs)
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
