@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from seqrank.sweeps.spec import PlannedRun, Sweep
 
@@ -80,13 +80,13 @@ class SweepStatus:
 Event = Callable[[SweepStatus, RunState], None]
 
 
-class _Backend:
+class Backend(Protocol):
     def submit(self, run: PlannedRun, path: Path) -> Any: ...
     def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]: ...
     def close(self) -> None: ...
 
 
-class LocalBackend(_Backend):
+class LocalBackend:
     """A process pool (spawned processes: no GL or torch state shared), one thread per run."""
 
     def __init__(self, workers: int):
@@ -112,7 +112,7 @@ class LocalBackend(_Backend):
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
-class RayBackend(_Backend):
+class RayBackend:
     """Ray tasks with per-run CPU and GPU fractions (several runs can share one GPU)."""
 
     def __init__(
@@ -149,7 +149,7 @@ class RayBackend(_Backend):
         self.ray.shutdown()
 
 
-def run_sweep(sweep: Sweep, backend: _Backend, on_event: Event | None = None) -> SweepStatus:
+def run_sweep(sweep: Sweep, backend: Backend, on_event: Event | None = None) -> SweepStatus:
     """Run every planned run to completion or failure; returns the final status."""
     runs_dir = sweep.out / "runs"
     status = SweepStatus({r.name: RunState(r.name) for r in sweep.runs})
