@@ -173,3 +173,68 @@ def test_ray_engine_runs_a_tiny_sweep_and_cleans_up(tmp_path, monkeypatch):
         assert all((sweep.out / "runs" / r.name / "summary.json").exists() for r in sweep.runs)
     finally:
         shutil.rmtree(temp, ignore_errors=True)
+
+
+BLOCK_SWEEP = """
+name = "kill"
+out = "{out}"
+device = "cpu"
+tasks = ["block:place"]
+schemes = ["pairwise", "root"]
+seeds = 1
+[overrides]
+steps = 3000
+max_feedback = 40
+reward_batch = 20
+eval_every = 500
+checkpoint_every = 500
+"""
+
+
+def test_a_killed_sweep_command_resumes_without_redoing_finished_runs(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    spec = tmp_path / "kill.toml"
+    out = tmp_path / "out"
+    spec.write_text(BLOCK_SWEEP.format(out=out))
+    command = [sys.executable, "-m", "seqrank", "sweep", str(spec), "--workers", "1"]
+    listed = subprocess.run([*command, "--dry-run"], capture_output=True, text=True, check=True)
+    names = listed.stdout.split()
+    assert names == [
+        "block-place/pairwise_pebble_oracle_seed0",
+        "block-place/root_pebble_oracle_seed0",
+    ]
+    first, second = (out / "runs" / n for n in names)
+    process = subprocess.Popen(
+        command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        deadline = time.monotonic() + 240
+        while not (first / "summary.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        while not (second / "metrics.jsonl").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)  # the sweep and its worker process
+        process.wait(10)
+    assert (first / "summary.json").exists() and not (second / "summary.json").exists()
+    stamp = (first / "summary.json").stat().st_mtime_ns
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    states = {r["name"]: r["state"] for r in json.loads((out / "sweep.json").read_text())["runs"]}
+    assert states[names[0]] == "skipped"
+    assert states[names[1]] in ("resumed", "trained")
+    assert (first / "summary.json").stat().st_mtime_ns == stamp
+    assert json.loads((second / "summary.json").read_text())["steps"] == 3000
+
+
+def test_sweep_command_rejects_bad_input(tmp_path, capsys):
+    from seqrank.cli import main
+
+    assert main(["sweep", str(tmp_path / "none.toml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["sweep", str(tmp_path / "x.toml"), "--workers", "0"]) == 2
+    assert "--workers 0" in capsys.readouterr().err

@@ -1,4 +1,5 @@
-"""The `seqrank` command line: train, theory, simulate, label, labels, study-report."""
+"""The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
+report."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
 from seqrank.labelling.cli import add_label_parsers, run_label, run_labels, run_study_report
 from seqrank.simulate import simulate
+from seqrank.sweeps.cli import add_sweep_parsers, run_report_command, run_sweep_command
 from seqrank.theory import DEFAULT_MS, PAPER_FIGURE13, compute_theory, disagreements
 from seqrank.train_cli import add_train_parser, run_train
 
@@ -156,6 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
     commands.choices["label"].set_defaults(handler=run_label)
     commands.choices["labels"].set_defaults(handler=run_labels)
     commands.choices["study-report"].set_defaults(handler=run_study_report)
+    add_sweep_parsers(commands)
+    commands.choices["sweep"].set_defaults(handler=run_sweep_command)
+    commands.choices["report"].set_defaults(handler=run_report_command)
     return parser
 
 

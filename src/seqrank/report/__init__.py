@@ -1,0 +1,1 @@
+"""`seqrank report`: tables, statistics and plots over run directories."""

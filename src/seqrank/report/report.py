@@ -1,0 +1,227 @@
+"""`seqrank report RUNS_DIR`: paper-style tables, robust statistics and plots.
+
+Methods are schemes; when a folder mixes backbones, teachers or scales they join the method
+name (`root/mrn/mistake/small`). Outputs in `--out` (default RUNS_DIR/report): `report.md`,
+`report.csv` (one row per task and method), `report.json`, `curves_<task>.png` and
+`feedback_<task>.png`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections import defaultdict
+from itertools import permutations
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from seqrank.report.collect import RunResult, collect_runs
+from seqrank.report.stats import (
+    iqm,
+    pooled_iqm,
+    probability_of_improvement,
+    stratified_bootstrap_ci,
+)
+
+SCHEME_ORDER = ("pairwise", "sequential", "root", "ranked")
+
+
+def method_names(runs: list[RunResult]) -> dict[Path, str]:
+    vary_backbone = len({r.backbone for r in runs}) > 1
+    vary_teacher = len({r.teacher for r in runs}) > 1
+    vary_scale = len({r.scale for r in runs}) > 1
+    names = {}
+    for run in runs:
+        parts = [run.scheme]
+        if vary_backbone:
+            parts.append(run.backbone)
+        if vary_teacher:
+            parts.append(run.teacher)
+        if vary_scale:
+            parts.append(run.scale)
+        names[run.path] = "/".join(parts)
+    return names
+
+
+def _order(methods: set[str]) -> list[str]:
+    def key(name: str) -> tuple[int, str]:
+        scheme = name.split("/")[0]
+        rank = SCHEME_ORDER.index(scheme) if scheme in SCHEME_ORDER else len(SCHEME_ORDER)
+        return rank, name
+
+    return sorted(methods, key=key)
+
+
+def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[str, Any]:
+    runs = collect_runs(folder)
+    names = method_names(runs)
+    rng = np.random.default_rng(seed)
+    tasks = sorted({r.task for r in runs})
+    methods = _order(set(names.values()))
+    cells: dict[tuple[str, str], list[RunResult]] = defaultdict(list)
+    for run in runs:
+        if run.score is not None:
+            cells[(run.task, names[run.path])].append(run)
+    table = []
+    for task in tasks:
+        for method in methods:
+            members = cells.get((task, method), [])
+            if not members:
+                continue
+            scores = np.array([r.score for r in members], np.float64)
+            low, high = stratified_bootstrap_ci(iqm_of, ({task: scores},), repetitions, rng)
+            table.append(
+                {
+                    "task": task,
+                    "method": method,
+                    "metric": members[0].metric,
+                    "n": len(members),
+                    "partial": sum(not r.finished for r in members),
+                    "mean": float(scores.mean()),
+                    "std": float(scores.std(ddof=1)) if len(scores) > 1 else None,
+                    "iqm": iqm(scores),
+                    "iqm_low": low,
+                    "iqm_high": high,
+                    "steps": min(r.steps for r in members),
+                }
+            )
+    normalized = {
+        method: {
+            task: np.array([r.normalized for r in cells[(task, method)]], np.float64)
+            for task in tasks
+            if cells.get((task, method))
+        }
+        for method in methods
+    }
+    aggregate = []
+    for method in methods:
+        if not normalized[method]:
+            continue
+        low, high = stratified_bootstrap_ci(pooled_iqm, (normalized[method],), repetitions, rng)
+        aggregate.append(
+            {"method": method, "iqm": pooled_iqm(normalized[method]), "low": low, "high": high}
+        )
+    improvement = []
+    for a, b in permutations(methods, 2):
+        x, y = normalized[a], normalized[b]
+        if not any(t in y for t in x):
+            continue
+        low, high = stratified_bootstrap_ci(probability_of_improvement, (x, y), repetitions, rng)
+        improvement.append(
+            {"x": a, "y": b, "p": probability_of_improvement(x, y), "low": low, "high": high}
+        )
+    return {
+        "folder": str(folder),
+        "runs": len(runs),
+        "finished": sum(r.finished for r in runs),
+        "tasks": tasks,
+        "methods": methods,
+        "table": table,
+        "aggregate_iqm": aggregate,
+        "probability_of_improvement": improvement,
+        "bootstrap": {"repetitions": repetitions, "seed": seed},
+        "_runs": runs,
+        "_names": names,
+    }
+
+
+def iqm_of(scores: dict[str, np.ndarray]) -> float:
+    return pooled_iqm(scores)
+
+
+def format_markdown(report: dict[str, Any]) -> str:
+    methods, tasks = report["methods"], report["tasks"]
+    cell = {(row["task"], row["method"]): row for row in report["table"]}
+    lines = [
+        f"# Report: {report['folder']}",
+        "",
+        f"{report['runs']} runs ({report['finished']} finished; partial runs count with their "
+        "last evaluation). Return on DMControl, success rate (%) on Meta-World and block:place;",
+        "mean ± sample std over seeds (n), as in the paper's Tables 5-7.",
+        "",
+        "| task | " + " | ".join(methods) + " |",
+        "|---|" + "---|" * len(methods),
+    ]
+    for task in tasks:
+        row = [task]
+        for method in methods:
+            c = cell.get((task, method))
+            if c is None:
+                row.append("-")
+                continue
+            std = "" if c["std"] is None else f" ± {c['std']:.1f}"
+            partial = f", {c['partial']} partial at step {c['steps']:,}" if c["partial"] else ""
+            row.append(f"{c['mean']:.1f}{std} (n={c['n']}{partial})")
+        lines.append("| " + " | ".join(row) + " |")
+    lines += [
+        "",
+        "IQM per task with 95% bootstrap CI (runs resampled):",
+        "",
+        "| task | method | IQM | 95% CI |",
+        "|---|---|---|---|",
+    ]
+    for c in report["table"]:
+        lines.append(
+            f"| {c['task']} | {c['method']} | {c['iqm']:.1f} | [{c['iqm_low']:.1f}, "
+            f"{c['iqm_high']:.1f}] |"
+        )
+    lines += [
+        "",
+        "Aggregate IQM of normalized scores (DMControl return / 1000, success rate / 100) over "
+        "all tasks, 95% stratified bootstrap CI:",
+        "",
+        "| method | IQM | 95% CI |",
+        "|---|---|---|",
+    ]
+    for a in report["aggregate_iqm"]:
+        lines.append(f"| {a['method']} | {a['iqm']:.3f} | [{a['low']:.3f}, {a['high']:.3f}] |")
+    lines += [
+        "",
+        "Probability of improvement P(X > Y), averaged over tasks, 95% stratified bootstrap CI:",
+        "",
+        "| X | Y | P(X > Y) | 95% CI |",
+        "|---|---|---|---|",
+    ]
+    for p in report["probability_of_improvement"]:
+        lines.append(f"| {p['x']} | {p['y']} | {p['p']:.2f} | [{p['low']:.2f}, {p['high']:.2f}] |")
+    boot = report["bootstrap"]
+    lines += ["", f"Bootstrap: {boot['repetitions']} resamples, seed {boot['seed']}."]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(report: dict[str, Any], out: Path, plots: bool = True) -> list[Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    written = [out / "report.md", out / "report.csv", out / "report.json"]
+    written[0].write_text(format_markdown(report))
+    with written[1].open("w", newline="") as handle:
+        fields = [
+            "task",
+            "method",
+            "metric",
+            "n",
+            "partial",
+            "mean",
+            "std",
+            "iqm",
+            "iqm_low",
+            "iqm_high",
+            "steps",
+        ]
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(report["table"])
+    public = {k: v for k, v in report.items() if not k.startswith("_")}
+    written[2].write_text(json.dumps(public, indent=2))
+    if plots:
+        from seqrank.report.plots import plot_curves, plot_feedback
+
+        for task in report["tasks"]:
+            runs = [r for r in report["_runs"] if r.task == task]
+            slug = task.replace(":", "-")
+            written.append(plot_curves(runs, report["_names"], task, out / f"curves_{slug}.png"))
+            written.append(
+                plot_feedback(runs, report["_names"], task, out / f"feedback_{slug}.png")
+            )
+    return written

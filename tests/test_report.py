@@ -1,0 +1,120 @@
+"""`seqrank report`: statistics against hand-computed values, tables from run folders."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from seqrank.cli import main
+from seqrank.report.stats import (
+    iqm,
+    pooled_iqm,
+    probability_of_improvement,
+    stratified_bootstrap_ci,
+)
+
+
+def test_iqm_is_the_mean_of_the_middle_half():
+    assert iqm(np.arange(1, 9)) == pytest.approx(4.5)  # mean of 3, 4, 5, 6
+    assert iqm(np.array([100.0, 1, 2, 3])) == pytest.approx(2.5)  # 1 and 100 trimmed
+    assert pooled_iqm({"a": np.array([1.0, 2]), "b": np.array([3.0, 4])}) == pytest.approx(2.5)
+
+
+def test_probability_of_improvement_by_hand():
+    x, y = {"t": np.array([1.0, 2, 3])}, {"t": np.array([0.0, 2, 5])}
+    # wins: 1>0; 2>0; 2=2 (half); 3>0; 3>2 -> 4.5 of 9 pairs
+    assert probability_of_improvement(x, y) == pytest.approx(0.5)
+    x2 = {"t": np.array([1.0, 2, 3]), "u": np.array([5.0])}
+    y2 = {"t": np.array([0.0, 2, 5]), "u": np.array([4.0])}
+    assert probability_of_improvement(x2, y2) == pytest.approx((0.5 + 1.0) / 2)
+    with pytest.raises(ValueError, match="no task"):
+        probability_of_improvement({"t": np.ones(2)}, {"u": np.ones(2)})
+
+
+def test_stratified_bootstrap_resamples_within_tasks():
+    rng = np.random.default_rng(0)
+    constant = {"a": np.full(5, 2.0), "b": np.full(3, 7.0)}
+    # every resample keeps 5 twos and 3 sevens: the statistic cannot move
+    assert stratified_bootstrap_ci(pooled_iqm, (constant,), 200, rng) == (
+        pytest.approx(pooled_iqm(constant)),
+        pytest.approx(pooled_iqm(constant)),
+    )
+    spread = {"a": np.arange(10.0)}
+    low, high = stratified_bootstrap_ci(pooled_iqm, (spread,), 2000, rng)
+    assert low < iqm(spread["a"]) < high and low > 2.0 and high < 7.0
+
+
+def fake_run(directory, task, scheme, seed, returns, success=None, finished=True):
+    directory.mkdir(parents=True)
+    config = {"task": task, "scheme": scheme, "backbone": "pebble", "teacher": "oracle"}
+    config.update(seed=seed, steps=1000 * len(returns), scale="small")
+    (directory / "config.json").write_text(json.dumps(config))
+    rows = []
+    for k, value in enumerate(returns):
+        rows.append(
+            {
+                "step": 1000 * (k + 1),
+                "kind": "eval",
+                "eval_return": value,
+                "eval_success_rate": (success or [0.0] * len(returns))[k],
+            }
+        )
+        rows.append(
+            {
+                "step": 1000 * (k + 1),
+                "kind": "feedback",
+                "total_asked": 10 * (k + 1),
+                "total_pairs": (14 if scheme == "root" else 10) * (k + 1),
+                "reward_heldout_accuracy": 0.7,
+            }
+        )
+    (directory / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    if finished:
+        (directory / "summary.json").write_text(json.dumps({"final_eval_return": returns[-1]}))
+
+
+def test_report_tables_match_the_runs(tmp_path):
+    finals = {"pairwise": [300.0, 340.0, 320.0], "root": [400.0, 380.0, 450.0]}
+    for scheme, values in finals.items():
+        for seed, value in enumerate(values):
+            fake_run(
+                tmp_path / "walker" / f"{scheme}_{seed}",
+                "walker_walk",
+                scheme,
+                seed,
+                [100.0, value],
+            )
+    fake_run(tmp_path / "door" / "root_0", "door-open", "root", 0, [1.0, 2.0], [0.0, 60.0])
+    fake_run(tmp_path / "door" / "root_1", "door-open", "root", 1, [1.0], [40.0], finished=False)
+    fake_run(tmp_path / "door" / "pairwise_0", "door-open", "pairwise", 0, [1.0, 2.0], [0.0, 20.0])
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    cells = {(c["task"], c["method"]): c for c in report["table"]}
+    walker_root = cells[("walker_walk", "root")]
+    assert walker_root["mean"] == pytest.approx(np.mean(finals["root"]))
+    assert walker_root["std"] == pytest.approx(np.std(finals["root"], ddof=1))
+    assert walker_root["metric"] == "return" and walker_root["n"] == 3
+    door_root = cells[("door-open", "root")]  # success rates; one run still going
+    assert door_root["metric"] == "success" and door_root["mean"] == pytest.approx(50.0)
+    assert door_root["partial"] == 1 and door_root["steps"] == 1000
+    # root beats pairwise in every walker pair and in both door pairs: P = 1
+    pi = {(p["x"], p["y"]): p["p"] for p in report["probability_of_improvement"]}
+    assert pi[("root", "pairwise")] == pytest.approx(1.0)
+    assert pi[("pairwise", "root")] == pytest.approx(0.0)
+    aggregate = {a["method"]: a["iqm"] for a in report["aggregate_iqm"]}
+    normalized_root = sorted([0.4, 0.38, 0.45, 0.6, 0.4])  # returns / 1000, success / 100
+    assert aggregate["root"] == pytest.approx(
+        np.mean(normalized_root[1:4])
+    )  # scipy trims int(0.25 * 5) = 1 each side
+    text = (tmp_path / "r" / "report.md").read_text()
+    assert "| walker_walk | 320.0 ± 20.0 (n=3) | 410.0 ± 36.1 (n=3) |" in text
+    for name in ("curves_walker_walk.png", "curves_door-open.png", "feedback_door-open.png"):
+        assert (tmp_path / "r" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "r" / "report.csv").read_text().count("\n") == 1 + 4
+
+
+def test_report_of_an_empty_folder_is_a_clear_error(tmp_path, capsys):
+    assert main(["report", str(tmp_path)]) == 2
+    assert "holds no run directories" in capsys.readouterr().err
