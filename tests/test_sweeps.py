@@ -6,6 +6,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -171,8 +172,26 @@ def test_ray_engine_runs_a_tiny_sweep_and_cleans_up(tmp_path, monkeypatch):
         assert {r.state for r in status.runs.values()} == {"trained"}
         assert not ray.is_initialized()
         assert all((sweep.out / "runs" / r.name / "summary.json").exists() for r in sweep.runs)
+        for _ in range(100):  # Ray's own processes (they name the session dir) are gone
+            if not processes_mentioning(str(temp)):
+                break
+            time.sleep(0.1)
+        assert processes_mentioning(str(temp)) == []
     finally:
         shutil.rmtree(temp, ignore_errors=True)
+    assert not temp.exists()
+
+
+def processes_mentioning(text: str) -> list[int]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if text.encode() in (entry / "cmdline").read_bytes():
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
 
 
 BLOCK_SWEEP = """
