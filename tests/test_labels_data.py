@@ -177,6 +177,16 @@ class Answerer(threading.Thread):
                 self.answered += 1
 
 
+def train_answered(trainer, hub, answerer: Answerer) -> dict:
+    """Train while `answerer` answers on the page; stop both afterwards."""
+    answerer.start()
+    try:
+        return trainer.train()
+    finally:
+        answerer.halt.set()
+        hub.stop.set()
+
+
 def online_trainer(path, wait: bool, **overrides):
     config = tiny_config(teacher="human", record_states=1, **overrides)
     run = RunDir.create(path, config, "cpu")
@@ -190,12 +200,7 @@ def online_trainer(path, wait: bool, **overrides):
 def test_online_training_asks_the_person_and_learns_from_the_answers(tmp_path):
     trainer, hub = online_trainer(tmp_path / "run", wait=True, steps=2300, max_feedback=20)
     answerer = Answerer(TestClient(create_app(hub)))
-    answerer.start()
-    try:
-        summary = trainer.train()
-    finally:
-        answerer.halt.set()
-        hub.stop.set()
+    summary = train_answered(trainer, hub, answerer)
     assert summary["asked"] == 20 and summary["sessions"] == 2
     stored = hub.db.answered_questions("online")
     assert len(stored) == 20 and [q.session for q, _ in stored] == [0] * 10 + [1] * 10
@@ -211,16 +216,15 @@ def test_no_wait_keeps_training_while_a_session_is_answered(tmp_path):
     answerer.gate = lambda state: state["question"]["session"] == 1 or release.is_set()
 
     def watch(step, live):
-        if step >= 2100:
+        if step >= 2100 and not release.is_set():
             release.set()
+            # hold training here until the person has answered, so that the session is sure
+            # to be counted before the run ends (however slow the machine)
+            if trainer._pending is not None:
+                trainer._pending[1].result(timeout=120)
 
     trainer.progress = watch
-    answerer.start()
-    try:
-        summary = trainer.train()
-    finally:
-        answerer.halt.set()
-        hub.stop.set()
+    summary = train_answered(trainer, hub, answerer)
     assert summary["sessions"] == 2 and summary["asked"] == 20
     sessions = [r for r in trainer.run_dir.read_metrics() if r["kind"] == "feedback"]
     # the second session was asked at step 1700 and counted once answered, after step 2100:
@@ -311,12 +315,7 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
     resumed = Trainer(run.read_config(), run, source=HumanSource(hub, "online", 3))
     resumed.load_checkpoint(run.load_checkpoint())
     answerer = Answerer(TestClient(create_app(hub)))
-    answerer.start()
-    try:
-        summary = resumed.train()
-    finally:
-        answerer.halt.set()
-        hub.stop.set()
+    summary = train_answered(resumed, hub, answerer)
     assert summary["asked"] == 20 and answerer.answered == 6  # only the 6 unanswered
     after = [(q.id, q.first, q.second, a.choice) for q, a in hub.db.answered_questions()]
     assert after[:14] == first_answers
