@@ -164,8 +164,7 @@ class Trainer:
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore()
         self.source = source if source is not None else make_source(config.teacher)
-        if hasattr(self.source, "check_compatible"):
-            self.source.check_compatible(config, obs_dim, act_dim)
+        self.source.check_compatible(config, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
         self.entropy_stats = RunningMeanStd()

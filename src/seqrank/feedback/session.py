@@ -47,6 +47,11 @@ class FeedbackSource(Protocol):
         """False when this source cannot give session `session` (recorded labels ran out)."""
         ...
 
+    def check_compatible(self, config: TrainConfig, obs_dim: int, act_dim: int) -> None:
+        """Raise ValueError when this source cannot serve a run of `config` (replayed labels
+        of another task, say)."""
+        ...
+
 
 class ScriptedSource:
     """B-Pref's scripted teacher, answering from the true rewards."""
@@ -56,6 +61,9 @@ class ScriptedSource:
 
     def has_session(self, session: int) -> bool:
         return True
+
+    def check_compatible(self, config: TrainConfig, obs_dim: int, act_dim: int) -> None:
+        pass
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         teacher = self.teacher.with_margin(request.margin)

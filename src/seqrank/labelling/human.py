@@ -68,6 +68,9 @@ class HumanSource:
     def has_session(self, session: int) -> bool:
         return True
 
+    def check_compatible(self, config: Any, obs_dim: int, act_dim: int) -> None:
+        pass
+
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         hub, db, run, session = self.hub, self.hub.db, self.run, request.session
         row = db.session_row(run, session)
