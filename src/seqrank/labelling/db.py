@@ -83,6 +83,10 @@ class AnswerConflict(Exception):
     """The question already holds a different answer."""
 
 
+class NotAsked(Exception):
+    """The question has no answer and is not the one being asked."""
+
+
 def to_blob(array: np.ndarray) -> bytes:
     buffer = io.BytesIO()
     np.save(buffer, np.asarray(array), allow_pickle=False)
@@ -291,11 +295,18 @@ class LabelDB:
         return _answer(rows[0]) if rows else None
 
     def record_answer(
-        self, question: StoredQuestion, choice: str, latency_ms: float, annotator: str
+        self,
+        question: StoredQuestion,
+        choice: str,
+        latency_ms: float,
+        annotator: str,
+        must_be_asked: bool = True,
     ) -> tuple[StoredAnswer, bool]:
         """Commit an answer; returns it and whether it was already stored (a duplicate).
 
-        Raises AnswerConflict when the question already holds a different answer.
+        Raises AnswerConflict when the question already holds a different answer, and
+        NotAsked when it has none and is not the question being asked (unless an import
+        says `must_be_asked=False`).
         """
         if choice not in CHOICES:
             raise ValueError(f"unknown choice {choice!r}; accepted: {', '.join(CHOICES)}")
@@ -312,6 +323,18 @@ class LabelDB:
                         f"the new answer {choice!r} was not stored"
                     )
                 return stored, True
+            # checked in the same transaction as the insert: a concurrent duplicate that lost
+            # the race must find the stored answer above, not a newer pending question
+            pending = conn.execute(
+                "SELECT q.id FROM questions q LEFT JOIN answers a ON a.question_id = q.id "
+                "WHERE a.question_id IS NULL ORDER BY q.id LIMIT 1"
+            ).fetchone()
+            if must_be_asked and (pending is None or pending["id"] != question.id):
+                now_asked = "none" if pending is None else str(pending["id"])
+                raise NotAsked(
+                    f"question {question.id} is not the one being asked (now: {now_asked}); "
+                    "reload the page"
+                )
             now = time.time()
             conn.execute(
                 "INSERT INTO answers VALUES (?, ?, ?, ?, ?, ?)",

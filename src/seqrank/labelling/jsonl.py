@@ -247,6 +247,7 @@ def import_file(db: LabelDB, path: Path) -> int:
                 _choice(record, left, first),
                 float(record.get("latency_ms", 0.0)),
                 str(record.get("annotator", "imported")),
+                must_be_asked=False,
             )
             added += 1
     for survey in labels.surveys:

@@ -25,7 +25,7 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTex
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
-from seqrank.labelling.db import AnswerConflict
+from seqrank.labelling.db import AnswerConflict, NotAsked
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
 
@@ -125,21 +125,11 @@ def create_app(hub: Hub) -> FastAPI:
         question = db.question(body.question_id)
         if question is None:
             raise HTTPException(404, f"unknown question {body.question_id}")
-        stored = db.answer(question.id)
-        if stored is None:
-            pending = db.pending_question()
-            if pending is None or pending.id != question.id:
-                now = "none" if pending is None else str(pending.id)
-                raise HTTPException(
-                    409,
-                    f"question {question.id} is not the one being asked (now: {now}); "
-                    "reload the page",
-                )
         try:
             stored, duplicate = db.record_answer(
                 question, body.choice, body.latency_ms, settings.annotator
             )
-        except AnswerConflict as conflict:
+        except (AnswerConflict, NotAsked) as conflict:
             raise HTTPException(409, str(conflict)) from None
         return {
             "accepted": True,
