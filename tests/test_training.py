@@ -92,8 +92,8 @@ def test_different_seed_different_metrics(finished, tmp_path):
     )
 
 
-def test_resumed_run_ends_with_the_same_numbers(finished, tmp_path):
-    config = tiny_config()
+def resume_after_kill(tmp_path: Path, config) -> tuple[Trainer, dict]:
+    """A run killed at step 2500, resumed from its step-2000 checkpoint to the end."""
     with pytest.raises(KeyboardInterrupt):
         run(tmp_path / "killed", config, stop_at=2500)
     directory = RunDir.open(tmp_path / "killed")
@@ -102,7 +102,12 @@ def test_resumed_run_ends_with_the_same_numbers(finished, tmp_path):
     resumed = Trainer(directory.read_config(), directory)
     resumed.load_checkpoint(state)
     resumed.train()
-    assert without_timing(directory.read_metrics()) == without_timing(
+    return resumed, state
+
+
+def test_resumed_run_ends_with_the_same_numbers(finished, tmp_path):
+    resumed, _ = resume_after_kill(tmp_path, tiny_config())
+    assert without_timing(resumed.run_dir.read_metrics()) == without_timing(
         finished.run_dir.read_metrics()
     )
     for a, b in zip(

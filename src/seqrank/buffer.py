@@ -27,20 +27,63 @@ class Batch:
     not_done: torch.Tensor  # 0 only at true terminals; time limits are not terminal
 
 
+COLUMNS = ("obs", "action", "next_obs", "true_reward", "reward", "not_done")
+
+
 class ReplayBuffer:
-    def __init__(self, capacity: int, obs_dim: int, act_dim: int, device: torch.device):
+    """A ring of transitions in one table: a row is obs | action | next_obs | true reward |
+    learned reward | not_done, so a batch is one gather and a transition one copy.
+
+    `storage` is where the table lives: the host for the reference path (each batch is
+    then copied to `device`, as the field's research code does), the device for the fast
+    path. `size_t` mirrors the size on the storage device, so sampling can run inside a
+    CUDA graph without reading it back.
+    """
+
+    def __init__(
+        self,
+        capacity: int,
+        obs_dim: int,
+        act_dim: int,
+        device: torch.device,
+        storage: torch.device | None = None,
+    ):
         self.capacity, self.device = capacity, device
-
-        def zeros(*shape: int) -> torch.Tensor:
-            return torch.zeros((capacity, *shape), dtype=torch.float32, device=device)
-
-        self.obs, self.next_obs = zeros(obs_dim), zeros(obs_dim)
-        self.action = zeros(act_dim)
-        self.true_reward, self.reward, self.not_done = zeros(1), zeros(1), zeros(1)
+        self.storage = storage if storage is not None else device
+        widths = (obs_dim, act_dim, obs_dim, 1, 1, 1)
+        self.width = sum(widths)
+        self.table = torch.zeros((capacity, self.width), dtype=torch.float32, device=self.storage)
+        offsets = np.cumsum((0, *widths))
+        self.columns = {
+            name: slice(int(a), int(b))
+            for name, a, b in zip(COLUMNS, offsets[:-1], offsets[1:], strict=True)
+        }
+        for name, cols in self.columns.items():
+            setattr(self, name, self.table[:, cols])
+        self.obs: torch.Tensor
+        self.action: torch.Tensor
+        self.next_obs: torch.Tensor
+        self.true_reward: torch.Tensor
+        self.reward: torch.Tensor
+        self.not_done: torch.Tensor
+        self.size_t = torch.zeros((), dtype=torch.float32, device=self.storage)
         self.index, self.size = 0, 0
+        self._staging: torch.Tensor | None = None
 
     def __len__(self) -> int:
         return self.size
+
+    def row(
+        self,
+        obs: np.ndarray,
+        action: np.ndarray,
+        true_reward: float,
+        learned_reward: float,
+        next_obs: np.ndarray,
+        terminated: bool,
+    ) -> np.ndarray:
+        tail = (true_reward, learned_reward, 0.0 if terminated else 1.0)
+        return np.concatenate([obs, action, next_obs, tail], dtype=np.float32)
 
     def add(
         self,
@@ -51,51 +94,84 @@ class ReplayBuffer:
         next_obs: np.ndarray,
         terminated: bool,
     ) -> None:
-        i = self.index
-        self.obs[i] = torch.as_tensor(obs, device=self.device)
-        self.action[i] = torch.as_tensor(action, device=self.device)
-        self.next_obs[i] = torch.as_tensor(next_obs, device=self.device)
-        self.true_reward[i, 0] = float(true_reward)
-        self.reward[i, 0] = float(learned_reward)
-        self.not_done[i, 0] = 0.0 if terminated else 1.0
-        self.index = (i + 1) % self.capacity
-        self.size = min(self.size + 1, self.capacity)
+        row = self.row(obs, action, true_reward, learned_reward, next_obs, terminated)
+        self.write_row(torch.from_numpy(row))
 
-    def sample(self, batch_size: int, generator: torch.Generator) -> Batch:
-        idx = torch.randint(0, self.size, (batch_size,), generator=generator).to(self.device)
+    def add_staged(
+        self,
+        obs: np.ndarray,
+        action: np.ndarray,
+        true_reward: float,
+        next_obs: np.ndarray,
+        terminated: bool,
+        reward_fn: RewardFn | None,
+    ) -> None:
+        """The fast path's add: one asynchronous copy from pinned memory, and the learned
+        reward computed where the table lives (no host round trip)."""
+        if self._staging is None:
+            pin = self.storage.type == "cuda"
+            # a small ring, so a row is never rewritten while its copy may still be queued
+            # (the trainer reads an action back every step, which drains older copies)
+            self._staging = torch.zeros((8, self.width), pin_memory=pin)
+        slot = self._staging[self.size % len(self._staging)]
+        slot.numpy()[:] = self.row(obs, action, true_reward, 0.0, next_obs, terminated)
+        i = self.index
+        self.write_row(slot)
+        if reward_fn is not None:
+            with torch.no_grad():
+                self.reward[i : i + 1] = reward_fn(self.obs[i : i + 1], self.action[i : i + 1])
+
+    def write_row(self, row: torch.Tensor) -> None:
+        self.table[self.index].copy_(row, non_blocking=True)
+        self.index = (self.index + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+        self.size_t.fill_(self.size)
+
+    def _batch(self, rows: torch.Tensor) -> Batch:
+        cols = self.columns
         return Batch(
-            self.obs[idx],
-            self.action[idx],
-            self.reward[idx],
-            self.next_obs[idx],
-            self.not_done[idx],
+            rows[:, cols["obs"]],
+            rows[:, cols["action"]],
+            rows[:, cols["reward"]],
+            rows[:, cols["next_obs"]],
+            rows[:, cols["not_done"]],
         )
 
+    def sample(self, batch_size: int, generator: torch.Generator) -> Batch:
+        """Indices from the host generator; the reference path copies the batch to `device`."""
+        idx = torch.randint(0, self.size, (batch_size,), generator=generator)
+        return self._batch(self.table[idx.to(self.storage)].to(self.device))
+
+    def sample_on_device(self, batch_size: int) -> Batch:
+        """Indices drawn where the table lives, from `size_t`: no host value is read, so
+        this can be captured in a CUDA graph. Requires storage on the training device."""
+        draw = torch.rand(batch_size, device=self.storage) * self.size_t
+        idx = draw.long().clamp_(max=self.capacity - 1)
+        return self._batch(self.table[idx])
+
     def relabel(self, reward_fn: RewardFn, chunk: int = 8192) -> None:
-        """Recompute the learned reward of every stored transition (the whole ring)."""
+        """Recompute the learned reward of every stored transition (the whole ring), in
+        chunks on the training device."""
         with torch.no_grad():
             for start in range(0, self.size, chunk):
                 stop = min(start + chunk, self.size)
-                self.reward[start:stop] = reward_fn(self.obs[start:stop], self.action[start:stop])
+                obs = self.obs[start:stop].to(self.device)
+                action = self.action[start:stop].to(self.device)
+                self.reward[start:stop] = reward_fn(obs, action).to(self.storage)
 
     def state_dict(self) -> dict[str, Any]:
         n = self.size
-        return {
-            "index": self.index,
-            "size": n,
-            "obs": self.obs[:n].cpu(),
-            "next_obs": self.next_obs[:n].cpu(),
-            "action": self.action[:n].cpu(),
-            "true_reward": self.true_reward[:n].cpu(),
-            "reward": self.reward[:n].cpu(),
-            "not_done": self.not_done[:n].cpu(),
-        }
+        state: dict[str, Any] = {"index": self.index, "size": n}
+        for name in COLUMNS:  # compact host copies, not views of the whole table
+            state[name] = getattr(self, name)[:n].to("cpu", copy=True).contiguous()
+        return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         n = state["size"]
-        for name in ("obs", "next_obs", "action", "true_reward", "reward", "not_done"):
-            getattr(self, name)[:n] = state[name].to(self.device)
+        for name in COLUMNS:
+            getattr(self, name)[:n] = state[name].to(self.storage)
         self.index, self.size = state["index"], n
+        self.size_t.fill_(n)
 
 
 @dataclass

@@ -19,6 +19,8 @@ BACKBONES = ("pebble", "mrn")
 SELECTIONS = ("uniform", "disagreement", "entropy")
 SCALES = ("paper", "small")
 DEVICES = ("auto", "cpu", "cuda")
+PATHS = ("auto", "reference", "fast")  # auto: fast on CUDA, reference elsewhere
+PRECISIONS = ("auto", "fp32", "tf32", "bf16")  # auto: tf32 for the fast path on CUDA
 
 
 @dataclass(frozen=True)
@@ -31,6 +33,8 @@ class TrainConfig:
     steps: int = 500_000
     device: str = "auto"
     scale: str = "paper"
+    path: str = "auto"
+    precision: str = "auto"
     # SAC (SPEC section 2)
     hidden: int = 1024
     layers: int = 2
@@ -205,6 +209,8 @@ def validate(config: TrainConfig) -> None:
         ("selection", SELECTIONS),
         ("scale", SCALES),
         ("device", DEVICES),
+        ("path", PATHS),
+        ("precision", PRECISIONS),
     ):
         value = getattr(config, name)
         if value not in accepted:
@@ -219,6 +225,16 @@ def validate(config: TrainConfig) -> None:
         raise ValueError(
             f"backbone {config.backbone!r} needs SAC's actor; block:place learns with DQN "
             "and supports backbone pebble"
+        )
+    if config.path == "reference" and config.precision not in ("auto", "fp32"):
+        raise ValueError(
+            f"precision {config.precision!r} needs the fast path: the reference path is "
+            "strict fp32 (use --path fast, or --precision fp32)"
+        )
+    if canonical_task(config.task)[0] == "block" and config.path == "fast":
+        raise ValueError(
+            "path 'fast' is SAC's fast update; block:place learns with DQN: use --path "
+            "reference or auto"
         )
     if teacher == "replay:":
         raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")

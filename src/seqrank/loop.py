@@ -26,6 +26,7 @@ from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer, Segments
 from seqrank.config import DEVICES, TrainConfig
 from seqrank.envs import make_env
 from seqrank.evaluation import evaluate_policy, reward_quality
+from seqrank.fast_sac import FastSAC
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import (
@@ -37,6 +38,7 @@ from seqrank.feedback.session import (
 )
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
 from seqrank.mrn import PairBatch, meta_reward_step
+from seqrank.precision import matmul_precision, resolve_precision
 from seqrank.pretrain import RunningMeanStd, intrinsic_reward
 from seqrank.reward_model import RewardModel
 from seqrank.runs import RunDir
@@ -62,6 +64,13 @@ class Counters:
     last_eval_success: float | None = None
     train_seconds: float = 0.0
     extra: dict[str, float] = field(default_factory=dict)
+
+
+def resolve_path(name: str, device: torch.device, discrete: bool) -> bool:
+    """True for the fast path: asked for, or `auto` on CUDA for SAC tasks."""
+    if name == "auto":
+        return device.type == "cuda" and not discrete
+    return name == "fast"
 
 
 def resolve_device(name: str) -> torch.device:
@@ -96,8 +105,11 @@ def make_source(teacher: str) -> FeedbackSource:
     return ScriptedSource(ScriptedTeacher(teacher_preset(teacher)))
 
 
-def make_agent(config: TrainConfig, env: Any, device: torch.device) -> Any:
-    """SAC for continuous control; DQN (D.1) for discrete tasks such as block:place."""
+def make_agent(
+    config: TrainConfig, env: Any, device: torch.device, fast: bool = False, precision: str = "fp32"
+) -> Any:
+    """SAC (reference or fast) for continuous control; DQN (D.1) for discrete tasks such as
+    block:place."""
     if env.discrete:
         from seqrank.dqn import DQN, DQNSettings, EpsilonSchedule
 
@@ -122,6 +134,8 @@ def make_agent(config: TrainConfig, env: Any, device: torch.device) -> Any:
         config.tau,
         config.target_update_every,
     )
+    if fast:
+        return FastSAC(env.obs_dim, env.act_dim, settings, device, precision)
     return SAC(env.obs_dim, env.act_dim, settings, device)
 
 
@@ -151,7 +165,9 @@ class Trainer:
                 "--seed-steps or --unsup-steps"
             )
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
-        self.agent = make_agent(config, self.env, self.device)
+        self.fast = resolve_path(config.path, self.device, self.env.discrete)
+        self.precision = resolve_precision(config.precision, self.device, self.fast)
+        self.agent = make_agent(config, self.env, self.device, self.fast, self.precision)
         self.reward_model = RewardModel(
             config.reward_ensemble,
             obs_dim + act_dim,
@@ -160,7 +176,9 @@ class Trainer:
             config.reward_lr,
             self.device,
         )
-        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, self.device)
+        # the reference keeps the buffer on the host and copies each batch to the device
+        storage = self.device if self.fast else torch.device("cpu")
+        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, self.device, storage)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore()
         self.source = source if source is not None else make_source(config.teacher)
@@ -170,16 +188,23 @@ class Trainer:
         self.entropy_stats = RunningMeanStd()
         self.counters = Counters()
         self._current = _empty_episode()
+        # fast path: the next action is computed before this step's update is launched, so
+        # the simulator steps on the host while the GPU updates (one update stale)
+        self._next_action: np.ndarray | None = None
         self._started = time.perf_counter()
 
     # ---- the loop -------------------------------------------------------------------
     def train(self) -> dict[str, Any]:
+        with matmul_precision(self.precision):
+            return self._train()
+
+    def _train(self) -> dict[str, Any]:
         config, c = self.config, self.counters
         obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
         context = info.get("task_index")
         tick = time.perf_counter()
         while c.step < config.steps:
-            action = self._act(obs)
+            action = self._act(obs) if self._next_action is None else self._next_action
             if config.record_states:
                 self._current["states"].append(self.env.get_state())
             next_obs, reward, terminated, truncated, info = self.env.step(action)
@@ -190,6 +215,8 @@ class Trainer:
                 self._end_episode(context)
                 obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
                 context = info.get("task_index")
+            if self.fast:
+                self._next_action = self._act(obs) if c.step < config.steps else None
             self._learn()
             if c.step % TRAIN_LOG_EVERY == 0 and self.agent.last_metrics:
                 self._log_training()
@@ -219,8 +246,13 @@ class Trainer:
         terminated: bool,
     ) -> None:
         action = self.env.canonical_action(action)
-        learned = self.reward_model.reward_numpy(obs, action) if self.counters.sessions else 0.0
-        self.replay.add(obs, action, reward, learned, next_obs, terminated)
+        trained = self.counters.sessions > 0
+        if self.fast:  # the learned reward is computed on the device, nothing read back
+            reward_fn = self.reward_model.reward if trained else None
+            self.replay.add_staged(obs, action, reward, next_obs, terminated, reward_fn)
+        else:  # the reference asks the reward model on the host at every step
+            learned = self.reward_model.reward_numpy(obs, action) if trained else 0.0
+            self.replay.add(obs, action, reward, learned, next_obs, terminated)
         for key, value in (("obs", obs), ("action", action), ("reward", reward)):
             self._current[key].append(value)
 
@@ -258,12 +290,14 @@ class Trainer:
         meta_step = c.step % config.meta_update_frequency == 0 and len(self.labels) > 0
         if config.backbone == "mrn" and budget_left and meta_step:
             self._meta_update()
+        elif self.fast:
+            self.agent.update_from_buffer(self.replay, config.batch, self.generator)
         else:
             self.agent.update(self.replay.sample(config.batch, self.generator), self.generator)
 
     def _unsupervised_update(self) -> None:
         batch = self.replay.sample(self.config.batch, self.generator)
-        stored = self.replay.obs[: len(self.replay)]
+        stored = self.replay.obs[: len(self.replay)].to(self.device)
         reward = intrinsic_reward(batch.obs, stored, self.config.knn_k, self.entropy_stats)
         batch = Batch(batch.obs, batch.action, reward, batch.next_obs, batch.not_done)
         self.agent.update(batch, self.generator)
@@ -308,7 +342,7 @@ class Trainer:
         # every answer so far may be a skip (B-Pref's skip teacher on all-negative returns):
         # then there is nothing to fit yet, and the reward model stays as it is
         result = self._train_reward() if len(self.labels) else None
-        self.replay.relabel(self.reward_model.reward)
+        self._relabel()
         if first:
             self.agent.reset_critic()
             for _ in range(config.updates_after_reset):
@@ -352,6 +386,7 @@ class Trainer:
             config.reward_minibatch,
             config.reward_stop_accuracy,
             self.generator,
+            sync_every_step=not self.fast,
         )
 
     def _meta_update(self) -> None:
@@ -370,7 +405,10 @@ class Trainer:
         self.agent.update(
             Batch(batch.obs, batch.action, reward, batch.next_obs, batch.not_done), self.generator
         )
-        self.replay.relabel(self.reward_model.reward)
+        self._relabel()
+
+    def _relabel(self) -> None:
+        self.replay.relabel(self.reward_model.reward, chunk=65_536 if self.fast else 8_192)
 
     def _reward_quality(self, session: int) -> dict[str, float]:
         config = self.config
@@ -468,6 +506,7 @@ class Trainer:
                 "entropy_stats": self.entropy_stats.state_dict(),
                 "rng": self.rng.bit_generator.state,
                 "generator": self.generator.get_state(),
+                "next_action": self._next_action,
             }
         )
 
@@ -481,4 +520,5 @@ class Trainer:
         self.entropy_stats.load_state_dict(state["entropy_stats"])
         self.rng.bit_generator.state = state["rng"]
         self.generator.set_state(state["generator"])
+        self._next_action = state.get("next_action")
         self.run_dir.truncate_metrics(self.counters.step)

@@ -95,11 +95,14 @@ class RewardModel:
         minibatch: int,
         stop_accuracy: float,
         generator: torch.Generator,
+        sync_every_step: bool = True,
     ) -> RewardTrainResult:
         """Bradley-Terry on segment sums; each member its own shuffle of all pairs.
 
         labels: probability that `first` is preferred. Stops early once the mean train
-        accuracy over hard labels exceeds `stop_accuracy`.
+        accuracy over hard labels exceeds `stop_accuracy`. `sync_every_step` reads the loss
+        back after every minibatch, as the reference code does; otherwise the sums stay on
+        the device and are read once per epoch, for the stopping rule.
         """
         pairs = len(labels)
         loss_value, accuracy, epochs = 0.0, 0.0, 0
@@ -107,21 +110,29 @@ class RewardModel:
             order = torch.stack(
                 [torch.randperm(pairs, generator=generator) for _ in range(self.members)]
             ).to(self.device)
-            losses, correct, counted = [], 0.0, 0.0
+            totals = torch.zeros(3, dtype=torch.float64, device=self.device)
+            host_totals, steps = np.zeros(3), 0
             for start in range(0, pairs, minibatch):
                 idx = order[:, start : start + minibatch]  # (members, B)
-                loss, hits, hard = self._step(segments, first[idx], second[idx], labels[idx])
-                losses.append(loss)
-                correct, counted = correct + hits, counted + hard
-            loss_value = float(np.mean(losses))
-            accuracy = correct / counted if counted else 1.0
+                step_totals = self._step(segments, first[idx], second[idx], labels[idx])
+                if sync_every_step:
+                    host_totals += step_totals.cpu().numpy()
+                else:
+                    totals += step_totals
+                steps += 1
+            if not sync_every_step:
+                host_totals = totals.cpu().numpy()
+            loss_sum, correct, counted = host_totals
+            loss_value = float(loss_sum) / steps
+            accuracy = float(correct / counted) if counted else 1.0
             if accuracy > stop_accuracy:
                 break
         return RewardTrainResult(epochs, loss_value, accuracy)
 
     def _step(
         self, segments: torch.Tensor, first: torch.Tensor, second: torch.Tensor, y: torch.Tensor
-    ) -> tuple[float, float, float]:
+    ) -> torch.Tensor:
+        """One optimiser step; returns (mean member loss, hits, hard labels) on the device."""
         logits = self.segment_returns(segments[first]) - self.segment_returns(segments[second])
         loss = F.binary_cross_entropy_with_logits(logits, y, reduction="none").mean(1).sum()
         self.optimizer.zero_grad(set_to_none=True)
@@ -130,7 +141,8 @@ class RewardModel:
         with torch.no_grad():
             hard = y != 0.5
             hits = ((logits > 0) == (y > 0.5)) & hard
-        return float(loss.detach()) / self.members, float(hits.sum()), float(hard.sum())
+            parts = (loss.detach() / self.members, hits.sum(), hard.sum())
+            return torch.stack([p.double() for p in parts])
 
     def state_dict(self) -> dict[str, Any]:
         return {"net": self.net.state_dict(), "optimizer": self.optimizer.state_dict()}

@@ -35,19 +35,42 @@ class Actor(nn.Module):
         super().__init__()
         self.net = mlp(obs_dim, hidden, layers, 2 * act_dim)
 
+        self.act_dim = act_dim
+
     def forward(
-        self, obs: torch.Tensor, generator: torch.Generator | None = None
+        self, obs: torch.Tensor, noise: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(sampled action, its log-probability (B, 1), deterministic action)."""
-        mean, raw_log_std = self.net(obs).chunk(2, dim=-1)
-        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(raw_log_std) + 1)
-        std = log_std.exp()
-        noise = torch.randn(mean.shape, generator=generator, device="cpu").to(mean.device)
-        pre_tanh = mean + std * noise
-        log_prob = (-0.5 * noise.pow(2) - log_std - 0.5 * math.log(2 * math.pi)).sum(-1, True)
-        # log|det d tanh(x)/dx| = 2 (log 2 - x - softplus(-2x)), numerically stable
-        log_prob -= (2 * (math.log(2) - pre_tanh - F.softplus(-2 * pre_tanh))).sum(-1, True)
-        return torch.tanh(pre_tanh), log_prob, torch.tanh(mean)
+        """(sampled action, its log-probability (B, 1), deterministic action).
+
+        `noise` is the standard normal draw (B, act_dim): the caller decides where it comes
+        from, so the reference and fast paths can be fed the same numbers.
+        """
+        return squashed_gaussian(self.net(obs), noise)
+
+
+def squashed_gaussian(
+    head: torch.Tensor, noise: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """tanh(mean + std * noise), its log-probability and tanh(mean) from the actor's head."""
+    mean, raw_log_std = head.chunk(2, dim=-1)
+    log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(raw_log_std) + 1)
+    pre_tanh = mean + log_std.exp() * noise
+    log_prob = (-0.5 * noise.pow(2) - log_std - 0.5 * math.log(2 * math.pi)).sum(-1, True)
+    # log|det d tanh(x)/dx| = 2 (log 2 - x - softplus(-2x)), numerically stable
+    log_prob -= (2 * (math.log(2) - pre_tanh - F.softplus(-2 * pre_tanh))).sum(-1, True)
+    return torch.tanh(pre_tanh), log_prob, torch.tanh(mean)
+
+
+def descend(optimizer: torch.optim.Optimizer, loss: torch.Tensor) -> None:
+    """One optimiser step on `loss`."""
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+
+
+def host_noise(rows: int, act_dim: int, generator: torch.Generator, device: torch.device) -> Any:
+    """Standard normal noise drawn on the host from the run's generator (the reference way)."""
+    return torch.randn((rows, act_dim), generator=generator).to(device)
 
 
 class TwinCritic(nn.Module):
@@ -106,40 +129,40 @@ class SAC:
     def eval_metrics(self) -> dict[str, float]:
         return {"alpha": float(self.alpha.detach())}
 
+    def noise(self, rows: int, generator: torch.Generator) -> torch.Tensor:
+        return host_noise(rows, self.act_dim, generator, self.device)
+
     @torch.no_grad()
     def act(self, obs: Any, deterministic: bool, generator: torch.Generator) -> Any:
         obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device).unsqueeze(0)
-        sampled, _, mean = self.actor(obs_t, generator)
+        sampled, _, mean = self.actor(obs_t, self.noise(1, generator))
         return (mean if deterministic else sampled)[0].cpu().numpy()
 
     def critic_target_value(self, batch: Batch, generator: torch.Generator) -> torch.Tensor:
         """gamma * not_done * (min target Q(s', a') - alpha log pi(a'|s')), no gradient."""
+        return self.target_value_with(batch, self.noise(len(batch.obs), generator))
+
+    def target_value_with(self, batch: Batch, noise: torch.Tensor) -> torch.Tensor:
         with torch.no_grad():
-            next_action, next_log_prob, _ = self.actor(batch.next_obs, generator)
+            next_action, next_log_prob, _ = self.actor(batch.next_obs, noise)
             q1, q2 = self.critic_target(batch.next_obs, next_action)
             soft_value = torch.min(q1, q2) - self.alpha * next_log_prob
             return self.settings.discount * batch.not_done * soft_value
 
-    def update_critic(self, batch: Batch, generator: torch.Generator) -> float:
-        target = batch.reward + self.critic_target_value(batch, generator)
+    def update_critic(self, batch: Batch, noise: torch.Tensor) -> float:
+        target = batch.reward + self.target_value_with(batch, noise)
         q1, q2 = self.critic(batch.obs, batch.action)
         loss = F.mse_loss(q1, target) + F.mse_loss(q2, target)
-        self.critic_opt.zero_grad(set_to_none=True)
-        loss.backward()
-        self.critic_opt.step()
+        descend(self.critic_opt, loss)
         return float(loss.detach())
 
-    def update_actor_and_alpha(self, batch: Batch, generator: torch.Generator) -> dict[str, float]:
-        action, log_prob, _ = self.actor(batch.obs, generator)
+    def update_actor_and_alpha(self, batch: Batch, noise: torch.Tensor) -> dict[str, float]:
+        action, log_prob, _ = self.actor(batch.obs, noise)
         q1, q2 = self.critic(batch.obs, action)
         actor_loss = (self.alpha.detach() * log_prob - torch.min(q1, q2)).mean()
-        self.actor_opt.zero_grad(set_to_none=True)
-        actor_loss.backward()
-        self.actor_opt.step()
+        descend(self.actor_opt, actor_loss)
         alpha_loss = (self.alpha * (-log_prob.detach() - self.target_entropy)).mean()
-        self.alpha_opt.zero_grad(set_to_none=True)
-        alpha_loss.backward()
-        self.alpha_opt.step()
+        descend(self.alpha_opt, alpha_loss)
         return {"actor_loss": float(actor_loss.detach()), "alpha": float(self.alpha.detach())}
 
     def soft_update_target(self) -> None:
@@ -152,8 +175,17 @@ class SAC:
 
     def update(self, batch: Batch, generator: torch.Generator) -> dict[str, float]:
         """One SAC step: critic, actor and temperature, and every 2nd step the target."""
-        metrics = {"critic_loss": self.update_critic(batch, generator)}
-        metrics.update(self.update_actor_and_alpha(batch, generator))
+        rows = len(batch.obs)
+        next_noise = self.noise(rows, generator)
+        noise = self.noise(rows, generator)
+        return self.update_with_noise(batch, next_noise, noise)
+
+    def update_with_noise(
+        self, batch: Batch, next_noise: torch.Tensor, noise: torch.Tensor
+    ) -> dict[str, float]:
+        """The update for given policy noise: for s' (critic target), then for s (actor)."""
+        metrics = {"critic_loss": self.update_critic(batch, next_noise)}
+        metrics.update(self.update_actor_and_alpha(batch, noise))
         self.updates += 1
         if self.updates % self.settings.target_update_every == 0:
             self.soft_update_target()
@@ -161,24 +193,25 @@ class SAC:
         return metrics
 
     def state_dict(self) -> dict[str, Any]:
-        return {
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "critic_target": self.critic_target.state_dict(),
-            "log_alpha": self.log_alpha.detach(),
-            "actor_opt": self.actor_opt.state_dict(),
-            "critic_opt": self.critic_opt.state_dict(),
-            "alpha_opt": self.alpha_opt.state_dict(),
-            "updates": self.updates,
-        }
+        return sac_state(self)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        self.actor.load_state_dict(state["actor"])
-        self.critic.load_state_dict(state["critic"])
-        self.critic_target.load_state_dict(state["critic_target"])
-        with torch.no_grad():
-            self.log_alpha.copy_(state["log_alpha"])
-        self.actor_opt.load_state_dict(state["actor_opt"])
-        self.critic_opt.load_state_dict(state["critic_opt"])
-        self.alpha_opt.load_state_dict(state["alpha_opt"])
-        self.updates = state["updates"]
+        load_sac_state(self, state)
+
+
+def sac_state(agent: Any) -> dict[str, Any]:
+    """Weights, temperature, optimisers and update count of a SAC agent (either path)."""
+    state = {name: getattr(agent, name).state_dict() for name in SAC_PARTS}
+    return {**state, "log_alpha": agent.log_alpha.detach().clone(), "updates": agent.updates}
+
+
+def load_sac_state(agent: Any, state: dict[str, Any]) -> None:
+    """The inverse of `sac_state`; weights are copied into the existing tensors."""
+    for name in SAC_PARTS:
+        getattr(agent, name).load_state_dict(state[name])
+    with torch.no_grad():
+        agent.log_alpha.copy_(state["log_alpha"])
+    agent.updates = state["updates"]
+
+
+SAC_PARTS = ("actor", "critic", "critic_target", "actor_opt", "critic_opt", "alpha_opt")

@@ -1,0 +1,48 @@
+"""Numeric precision of the fast path: fp32, TF32 matmuls, or bf16 autocast.
+
+The switches torch offers for TF32 are process-wide, so every use is scoped: the benchmark
+runs the strict-fp32 reference and the TF32 fast path interleaved in one process.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+import torch
+
+from seqrank.config import PRECISIONS
+
+
+def resolve_precision(name: str, device: torch.device, fast: bool) -> str:
+    """`auto`: TF32 for the fast path on CUDA, fp32 everywhere else."""
+    if name not in PRECISIONS:
+        raise ValueError(f"unknown precision {name!r}; accepted: {', '.join(PRECISIONS)}")
+    if not fast and name not in ("auto", "fp32"):
+        raise ValueError(
+            f"precision {name!r} needs the fast path: the reference path is strict fp32 "
+            "(use --path fast, or --precision fp32)"
+        )
+    if name == "auto":
+        return "tf32" if fast and device.type == "cuda" else "fp32"
+    return name
+
+
+@contextlib.contextmanager
+def matmul_precision(precision: str) -> Iterator[None]:
+    """TF32 matmuls and convolutions on CUDA for `tf32` and `bf16`, strict fp32 otherwise."""
+    allow = precision in ("tf32", "bf16")
+    before = torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32
+    torch.backends.cuda.matmul.allow_tf32 = allow
+    torch.backends.cudnn.allow_tf32 = allow
+    try:
+        yield
+    finally:
+        torch.backends.cuda.matmul.allow_tf32, torch.backends.cudnn.allow_tf32 = before
+
+
+def autocast(precision: str, device: torch.device) -> contextlib.AbstractContextManager[None]:
+    """bf16 autocast for forward passes when asked for; a no-op otherwise."""
+    if precision == "bf16":
+        return torch.autocast(device.type, dtype=torch.bfloat16)
+    return contextlib.nullcontext()

@@ -1,0 +1,252 @@
+"""The fast SAC path against the reference: same update, same buffer rows, same runs."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+import torch
+
+from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.config import resolve_config
+from seqrank.fast_sac import FastSAC
+from seqrank.precision import resolve_precision
+from seqrank.reward_model import RewardModel
+from seqrank.sac import SAC, SACSettings
+from test_training import resume_after_kill, run, tiny_config, without_timing
+
+CPU = torch.device("cpu")
+SETTINGS = SACSettings(64, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+OBS, ACT, ROWS = 7, 3, 48
+CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+
+
+def twins(precision: str = "fp32", device: torch.device = CPU) -> tuple[SAC, FastSAC]:
+    """A reference agent and a fast one holding the same weights."""
+    torch.manual_seed(0)
+    reference = SAC(OBS, ACT, SETTINGS, device)
+    fast = FastSAC(OBS, ACT, SETTINGS, device, precision, graphs=False)
+    fast.actor.load_state_dict(reference.actor.state_dict())
+    fast.critic.copy_from(reference.critic)
+    fast.critic_target.copy_from(reference.critic_target)
+    return reference, fast
+
+
+def random_batch(generator: torch.Generator, device: torch.device = CPU) -> Batch:
+    def draw(*shape: int) -> torch.Tensor:
+        return torch.randn(shape, generator=generator).to(device)
+
+    not_done = (torch.rand((ROWS, 1), generator=generator) > 0.1).float().to(device)
+    return Batch(draw(ROWS, OBS), draw(ROWS, ACT).tanh(), draw(ROWS, 1), draw(ROWS, OBS), not_done)
+
+
+def all_changed(before: object, after: object) -> bool:
+    return all(not torch.equal(a, b) for a, b in zip(before, after, strict=True))  # type: ignore[call-overload]
+
+
+def stacked(reference: SAC, which: str) -> list[torch.Tensor]:
+    """The reference's twin critic (or target) in the fast layout."""
+    holder = FastSAC(OBS, ACT, SETTINGS, CPU, graphs=False)
+    holder.critic.copy_from(getattr(reference, which).cpu())
+    return [p.detach() for p in holder.critic.parameters()]
+
+
+def assert_same_agents(reference: SAC, fast: FastSAC, atol: float) -> None:
+    pairs = [
+        (list(reference.actor.parameters()), list(fast.actor.parameters())),
+        (stacked(reference, "critic"), list(fast.critic.parameters())),
+        (stacked(reference, "critic_target"), list(fast.critic_target.parameters())),
+        ([reference.log_alpha], [fast.log_alpha]),
+    ]
+    for expected, actual in pairs:
+        for a, b in zip(expected, actual, strict=True):
+            torch.testing.assert_close(b.detach().cpu(), a.detach().cpu(), atol=atol, rtol=0)
+
+
+def test_stacked_critic_gives_the_reference_q_values():
+    reference, fast = twins()
+    batch = random_batch(torch.Generator().manual_seed(1))
+    expected = reference.critic(batch.obs, batch.action)
+    actual = fast.critic(batch.obs, batch.action)
+    for a, b in zip(expected, actual, strict=True):
+        torch.testing.assert_close(b, a, atol=1e-6, rtol=1e-6)
+
+
+def test_fp32_updates_match_the_reference_from_the_same_state_and_batch():
+    reference, fast = twins()
+    generator = torch.Generator().manual_seed(1)
+    moved = copy.deepcopy(reference.actor.state_dict())
+    for _ in range(6):  # three soft target updates among them
+        batch = random_batch(generator)
+        next_noise = torch.randn((ROWS, ACT), generator=generator)
+        noise = torch.randn((ROWS, ACT), generator=generator)
+        expected = reference.update_with_noise(batch, next_noise, noise)
+        fast.update_with_noise(batch, next_noise, noise)
+        actual = fast.last_metrics
+        for name, value in expected.items():
+            assert actual[name] == pytest.approx(value, rel=1e-5, abs=1e-7), name
+    assert fast.updates == reference.updates == 6
+    assert_same_agents(reference, fast, atol=1e-6)
+    assert all_changed(moved.values(), fast.actor.parameters())  # not untouched weights
+
+
+def test_bf16_update_stays_within_its_documented_tolerance():
+    """bf16 (README, "Precision"): losses within 1%, the parameter steps pointing the same way
+    (cosine similarity at least 0.98)."""
+    reference, fast = twins("bf16")
+    before = [p.detach().clone() for p in reference.actor.parameters()]
+    generator = torch.Generator().manual_seed(1)
+    batch = random_batch(generator)
+    next_noise = torch.randn((ROWS, ACT), generator=generator)
+    noise = torch.randn((ROWS, ACT), generator=generator)
+    expected = reference.update_with_noise(batch, next_noise, noise)
+    fast.update_with_noise(batch, next_noise, noise)
+    for name, value in fast.last_metrics.items():
+        assert value == pytest.approx(expected[name], rel=1e-2), name
+
+    def step(params: object) -> torch.Tensor:
+        return torch.cat([(p.detach() - b).flatten() for p, b in zip(params, before, strict=True)])  # type: ignore[call-overload]
+
+    cosine = torch.nn.functional.cosine_similarity(
+        step(reference.actor.parameters()), step(fast.actor.parameters()), dim=0
+    )
+    assert cosine >= 0.98
+
+
+def test_critic_reset_happens_in_place():
+    _, fast = twins()
+    fast.update(random_batch(torch.Generator().manual_seed(1)), torch.Generator())
+    addresses = [p.data_ptr() for p in fast.critic.parameters()]
+    old = [p.detach().clone() for p in fast.critic.parameters()]
+    fast.reset_critic()
+    assert [p.data_ptr() for p in fast.critic.parameters()] == addresses
+    assert all_changed(old, fast.critic.parameters())
+    for a, b in zip(fast.critic.parameters(), fast.critic_target.parameters(), strict=True):
+        assert torch.equal(a, b)
+    for state in fast.critic_opt.state.values():
+        assert all(float(v.abs().sum()) == 0 for v in state.values())
+
+
+def test_staged_adds_write_the_rows_and_learned_rewards_of_plain_adds():
+    plain, staged = ReplayBuffer(6, 2, 1, CPU), ReplayBuffer(6, 2, 1, CPU)
+
+    def reward_fn(obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return obs[:, :1] * 10 + action
+
+    for i in range(9):  # wraps
+        obs, action, next_obs = np.full(2, i, np.float32), np.full(1, -i, np.float32), np.ones(2)
+        learned = float(reward_fn(torch.tensor(obs)[None], torch.tensor(action)[None]))
+        plain.add(obs, action, 0.5 * i, learned, next_obs, i == 4)
+        staged.add_staged(obs, action, 0.5 * i, next_obs, i == 4, reward_fn)
+    assert torch.equal(staged.table, plain.table)
+    assert staged.index == plain.index == 3 and len(staged) == 6
+    assert float(staged.size_t) == 6
+
+
+def test_device_sampling_draws_only_stored_rows():
+    buffer = ReplayBuffer(100, 1, 1, CPU)
+    for i in range(5):
+        buffer.add(np.full(1, i + 1, np.float32), np.zeros(1), 0.0, 0.0, np.zeros(1), False)
+    torch.manual_seed(0)
+    drawn = buffer.sample_on_device(4000).obs[:, 0]
+    assert set(drawn.tolist()) == {1.0, 2.0, 3.0, 4.0, 5.0}  # never an empty row (0)
+
+
+def test_reward_training_reads_back_once_per_epoch_with_the_same_result():
+    from test_learning_parts import segment_pairs
+
+    results = []
+    for sync in (True, False):
+        torch.manual_seed(0)
+        model = RewardModel(3, 3, 32, 2, 3e-3, CPU)
+        segments, first, second, labels = segment_pairs(100)
+        gen = torch.Generator().manual_seed(1)
+        result = model.train(segments, first, second, labels, 8, 32, 0.999, gen, sync)
+        results.append((result, [p.detach().clone() for p in model.net.parameters()]))
+    (a, weights_a), (b, weights_b) = results
+    assert a.epochs == b.epochs == 8 and a.accuracy == b.accuracy
+    assert a.loss == pytest.approx(b.loss, rel=1e-6)
+    assert all(torch.equal(x, y) for x, y in zip(weights_a, weights_b, strict=True))
+
+
+@pytest.fixture(scope="module")
+def fast_run(tmp_path_factory):
+    return run(tmp_path_factory.mktemp("fast") / "full", tiny_config(path="fast"))
+
+
+def test_a_fast_run_goes_through_every_phase(fast_run):
+    rows = fast_run.run_dir.read_metrics()
+    assert isinstance(fast_run.agent, FastSAC) and fast_run.precision == "fp32"
+    assert [r["step"] for r in rows if r["kind"] == "feedback"] == [1200, 1700, 2200]
+    assert [r["step"] for r in rows if r["kind"] == "eval"] == [1600, 3200]
+    assert fast_run.agent.updates >= 3200 - 300
+    assert fast_run.replay.storage == CPU  # on a GPU it would be the device
+    train_rows = [r for r in rows if r["kind"] == "train"]
+    assert train_rows and all(np.isfinite(r["critic_loss"]) for r in train_rows)
+    # the learned rewards of the buffer are those of the final reward model
+    n = len(fast_run.replay)
+    with torch.no_grad():
+        expected = fast_run.reward_model.reward(fast_run.replay.obs[:n], fast_run.replay.action[:n])
+    torch.testing.assert_close(fast_run.replay.reward[:n], expected)
+
+
+def test_a_resumed_fast_run_ends_with_the_same_numbers(fast_run, tmp_path):
+    resumed, state = resume_after_kill(tmp_path, tiny_config(path="fast"))
+    assert state["next_action"] is not None  # the action computed ahead is kept
+    rows = without_timing(resumed.run_dir.read_metrics())
+    assert rows == without_timing(fast_run.run_dir.read_metrics())
+    resumed_actor, finished_actor = resumed.agent.actor, fast_run.agent.actor
+    for a, b in zip(resumed_actor.parameters(), finished_actor.parameters(), strict=True):
+        assert torch.equal(a, b)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (dict(path="quick"), "unknown path 'quick'; accepted: auto, reference, fast"),
+        (dict(precision="fp16"), "unknown precision 'fp16'; accepted: auto, fp32, tf32, bf16"),
+        (dict(path="reference", precision="bf16"), "precision 'bf16' needs the fast path"),
+    ],
+)
+def test_bad_path_and_precision_are_named(overrides, message):
+    with pytest.raises(ValueError, match=message):
+        tiny_config(**overrides)
+
+
+def test_fast_path_is_refused_for_the_dqn_task():
+    with pytest.raises(ValueError, match="block:place learns with DQN"):
+        resolve_config("block:place", "small", dict(path="fast"))
+
+
+def test_precision_resolution():
+    cuda = torch.device("cuda")
+    assert resolve_precision("auto", cuda, fast=True) == "tf32"
+    assert resolve_precision("auto", cuda, fast=False) == "fp32"
+    assert resolve_precision("auto", CPU, fast=True) == "fp32"
+    assert resolve_precision("bf16", CPU, fast=True) == "bf16"
+    with pytest.raises(ValueError, match="the reference path is strict fp32"):
+        resolve_precision("tf32", CPU, fast=False)  # path auto on a CPU is the reference
+
+
+@CUDA
+def test_graph_updates_on_cuda_learn_like_eager_ones():
+    """The captured update restores what its warm-up changed, then trains the critic."""
+    device = torch.device("cuda")
+    torch.manual_seed(0)
+    agent = FastSAC(OBS, ACT, SETTINGS, device, "fp32", graphs=True)
+    buffer = ReplayBuffer(1000, OBS, ACT, device)
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(500):  # reward = first observation feature, learnable by the critic
+        obs = torch.randn(OBS, generator=generator).numpy()
+        buffer.add(obs, np.zeros(ACT, np.float32), 0.0, float(obs[0]), obs, False)
+    agent.update(buffer.sample(ROWS, generator), generator)  # the optimisers' state exists
+    before = [p.detach().clone() for p in agent.actor.parameters()]
+    agent.update_from_buffer(buffer, ROWS, generator)  # captures, then replays once
+    assert agent.capture_seconds > 0 and agent.updates == 2
+    assert all_changed(before, agent.actor.parameters())
+    first = agent.last_metrics["critic_loss"]
+    for _ in range(300):
+        agent.update_from_buffer(buffer, ROWS, generator)
+    assert agent.updates == 302
+    assert agent.last_metrics["critic_loss"] < first
