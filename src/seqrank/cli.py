@@ -1,5 +1,5 @@
 """The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
-report."""
+report, bench."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import NoReturn
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from seqrank import __version__, console_tables
+from seqrank.bench.cli import add_bench_parser, run_bench_command
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
@@ -161,18 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_sweep_parsers(commands)
     commands.choices["sweep"].set_defaults(handler=run_sweep_command)
     commands.choices["report"].set_defaults(handler=run_report_command)
+    add_bench_parser(commands)
+    commands.choices["bench"].set_defaults(handler=run_bench_command)
     return parser
-
-
-def _progress(console: Console) -> Progress:
-    return Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    )
 
 
 def _run_theory(args: argparse.Namespace, out: Console, err: Console) -> int:
@@ -182,7 +173,7 @@ def _run_theory(args: argparse.Namespace, out: Console, err: Console) -> int:
             f"(accepted: 0 to {ENUMERATION_LIMIT})"
         )
     ms = sorted(set(args.m))
-    with _progress(err) as progress:
+    with console_tables.progress_bar(err) as progress:
         task = progress.add_task("theory", total=len(ms))
         rows = compute_theory(
             ms,
@@ -213,7 +204,7 @@ def _run_theory(args: argparse.Namespace, out: Console, err: Console) -> int:
 
 
 def _run_simulate(args: argparse.Namespace, out: Console, err: Console) -> int:
-    with _progress(err) as progress:
+    with console_tables.progress_bar(err) as progress:
         task = progress.add_task("simulate", total=len(args.schemes) * len(args.teachers))
         results = simulate(
             args.schemes,
@@ -253,6 +244,7 @@ def _run_simulate(args: argparse.Namespace, out: Console, err: Console) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = list(sys.argv[1:] if argv is None else argv)
     # Piped output (files, CI logs) gets room for the wide tables instead of rich's 80.
     out = Console(soft_wrap=False, width=None if sys.stdout.isatty() else 150)
     err = Console(stderr=True)

@@ -1,4 +1,4 @@
-"""Terminal tables for `seqrank theory` and `seqrank simulate` (rich)."""
+"""Terminal tables for `seqrank theory` and `seqrank simulate`, and the progress bar (rich)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,23 @@ import argparse
 from collections.abc import Sequence
 
 from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from seqrank.simulate import CellResult
 from seqrank.theory import PAPER_FIGURE13, TheoryRow
+
+
+def progress_bar(console: Console) -> Progress:
+    """A transient bar: description, bar, done/total, elapsed time."""
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    )
 
 
 def _num(value: float | None, digits: int = 3) -> str:

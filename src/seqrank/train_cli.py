@@ -18,7 +18,7 @@ from seqrank.runs import RunDir
 
 # Options that name the run rather than tune it.
 IDENTITY = ("task", "scheme", "teacher", "backbone", "seed", "device")
-_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
+FIELD_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
 
 
 def add_train_parser(commands: Any) -> None:
@@ -60,7 +60,7 @@ def add_run_options(parser: argparse.ArgumentParser) -> None:
             continue
         parser.add_argument(
             f"--{f.name.replace('_', '-')}",
-            type=_TYPES[str(f.type)],
+            type=FIELD_TYPES[str(f.type)],
             default=argparse.SUPPRESS,
             metavar=str(f.type).upper(),
             help=f"default: {f.default} (or the preset's)",

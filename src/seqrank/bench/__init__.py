@@ -1,0 +1,1 @@
+"""`seqrank bench`: the reference and fast training paths timed side by side."""

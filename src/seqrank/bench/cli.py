@@ -1,0 +1,136 @@
+"""`seqrank bench`: interleaved timings of both paths, written as JSON and Markdown."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from seqrank.config import PRECISIONS, SCALES
+from seqrank.console_tables import progress_bar
+from seqrank.errors import UsageError
+
+FAST_PRECISIONS = [p for p in PRECISIONS if p != "auto"]
+
+
+def add_bench_parser(commands: Any) -> None:
+    bench = commands.add_parser(
+        "bench",
+        help="time the reference and fast training paths side by side",
+        description="Run the reference path (host replay buffer, a host-to-device copy per "
+        "batch, the reward model asked per step, strict fp32, a host sync per update) and "
+        "the fast path (device buffer, no syncs, CUDA graphs, TF32/bf16) in one process, "
+        "interleaved, and write microseconds per SAC update and per reward epoch, loop steps "
+        "per second, the projected full-run time and the fast/reference ratios to "
+        "OUT.json and OUT.md.",
+    )
+    bench.add_argument("--task", default="walker_walk")
+    bench.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    bench.add_argument(
+        "--scale",
+        choices=("auto", *SCALES),
+        default="auto",
+        help="network and batch sizes: paper on CUDA, small on CPU (auto)",
+    )
+    bench.add_argument("--repeats", type=int, default=3, help="interleaved rounds (3)")
+    bench.add_argument("--updates", type=int, default=200, help="SAC updates timed per round")
+    bench.add_argument("--reward-epochs", type=int, default=5, help="reward epochs per round")
+    bench.add_argument("--loop-steps", type=int, default=2000, help="loop steps per round")
+    bench.add_argument(
+        "--precisions",
+        help="fast-path precisions, comma-separated "
+        f"({', '.join(FAST_PRECISIONS)}; default: tf32,bf16,fp32 on CUDA, fp32 on CPU)",
+    )
+    bench.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="override a training setting, e.g. --set hidden=512 (repeatable)",
+    )
+    bench.add_argument(
+        "--full-run",
+        action="store_true",
+        help="also train the fast path for the whole run length and time it",
+    )
+    bench.add_argument(
+        "--out", type=Path, help="output path without suffix (default: results/bench-<device>)"
+    )
+
+
+def run_bench_command(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.bench.report import format_markdown
+    from seqrank.bench.suite import BenchPlan, run_bench
+    from seqrank.loop import resolve_device
+
+    for name in ("repeats", "updates", "reward_epochs"):
+        if getattr(args, name) < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be at least 1")
+    if args.loop_steps < 300:
+        raise UsageError(f"--loop-steps {args.loop_steps} is too short; it must be >= 300")
+    try:
+        device = resolve_device(args.device)
+        precisions = _precisions(args.precisions, device.type)
+        overrides = parse_overrides(args.set)
+        plan = BenchPlan.build(args.task, args.scale, device, precisions, overrides, args)
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
+    with progress_bar(err) as bar:
+        task = bar.add_task("bench", total=plan.total_measurements)
+        result = run_bench(
+            plan, on_measurement=lambda what: bar.update(task, advance=1, description=what)
+        )
+    result["command"] = "seqrank " + shlex.join(args.command_line)
+    result["host"] = {"machine": platform.machine(), "cpus": os.cpu_count()}
+    path = args.out or Path("results") / f"bench-{device.type}"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    markdown = format_markdown(result)
+    path.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
+    path.with_suffix(".md").write_text(markdown)
+    out.print(markdown, markup=False, highlight=False)
+    err.print(f"wrote {path.with_suffix('.json')} and {path.with_suffix('.md')}")
+    return 0
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """FIELD=VALUE pairs typed like the TrainConfig field they name."""
+    from dataclasses import fields
+
+    from seqrank.config import TrainConfig
+
+    types = {
+        f.name: {"int": int, "float": float, "str": str}[str(f.type)] for f in fields(TrainConfig)
+    }
+    overrides: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip().replace("-", "_")
+        if not sep or name not in types:
+            raise ValueError(
+                f"--set {item!r}: expected FIELD=VALUE with FIELD a `seqrank train` setting "
+                "(such as hidden, batch, reward_hidden)"
+            )
+        try:
+            overrides[name] = types[name](text)
+        except ValueError:
+            raise ValueError(f"--set {item!r}: {text!r} is not a {types[name].__name__}") from None
+    return overrides
+
+
+def _precisions(text: str | None, device_type: str) -> list[str]:
+    if text is None:
+        return ["tf32", "bf16", "fp32"] if device_type == "cuda" else ["fp32"]
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in FAST_PRECISIONS]
+    if unknown or not names:
+        raise ValueError(
+            f"unknown precision {', '.join(map(repr, unknown)) or repr(text)}; accepted: "
+            f"{', '.join(FAST_PRECISIONS)} (comma-separated)"
+        )
+    return list(dict.fromkeys(names))

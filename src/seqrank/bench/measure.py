@@ -1,0 +1,185 @@
+"""Side-by-side timings of the reference and fast paths, in one process.
+
+Each measurement builds its own agent / reward model / trainer from the same settings, so
+the two paths only differ in the code they run. The caller interleaves the paths and takes
+medians over repeats.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from seqrank.buffer import ReplayBuffer
+from seqrank.config import TrainConfig
+from seqrank.loop import Trainer, make_agent
+from seqrank.precision import matmul_precision
+from seqrank.reward_model import RewardModel
+from seqrank.runs import RunDir
+
+BUFFER_ROWS = 20_000  # transitions in the benchmark's replay buffer
+REWARD_PAIRS = 1_000  # labelled pairs in the reward-training benchmark (400 asked + inferred)
+
+
+def synchronize(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def _timed(device: torch.device, work: Callable[[], None]) -> float:
+    synchronize(device)
+    started = time.perf_counter()
+    work()
+    synchronize(device)
+    return time.perf_counter() - started
+
+
+class _Dims:
+    """Observation and action sizes of a task, without keeping its simulator open."""
+
+    def __init__(self, task: str):
+        from seqrank.envs import make_env
+
+        env = make_env(task, 0)
+        self.obs_dim, self.act_dim, self.discrete = env.obs_dim, env.act_dim, env.discrete
+        self.episode_length = env.episode_length
+        env.close()
+
+
+def update_microseconds(
+    config: TrainConfig, device: torch.device, fast: bool, precision: str, updates: int
+) -> dict[str, float]:
+    """Mean time of one SAC update in the trainer's hot loop, and the capture time."""
+    dims = _Dims(config.task)
+    torch.manual_seed(0)
+    agent = make_agent(config, dims, device, fast, precision)
+    storage = device if fast else torch.device("cpu")
+    buffer = ReplayBuffer(BUFFER_ROWS, dims.obs_dim, dims.act_dim, device, storage)
+    rng = np.random.default_rng(0)
+    rows = rng.standard_normal((BUFFER_ROWS, buffer.width)).astype(np.float32)
+    rows[:, -1] = 1.0  # not done
+    buffer.table.copy_(torch.from_numpy(rows))
+    buffer.index = buffer.size = BUFFER_ROWS
+    buffer.size_t.fill_(BUFFER_ROWS)
+    generator = torch.Generator().manual_seed(0)
+
+    def reference_update() -> None:
+        agent.update(buffer.sample(config.batch, generator), generator)  # syncs to log
+
+    def fast_update() -> None:
+        agent.update_from_buffer(buffer, config.batch, generator)
+
+    one = fast_update if fast else reference_update
+
+    def many() -> None:
+        for _ in range(updates):
+            one()
+
+    with matmul_precision(precision):
+        agent.update(buffer.sample(config.batch, generator), generator)  # optimiser state
+        first = _timed(device, one)  # includes the graph capture on CUDA
+        seconds = _timed(device, many)
+    capture = float(getattr(agent, "capture_seconds", 0.0))
+    return {"us": 1e6 * seconds / updates, "capture_s": capture, "first_s": first}
+
+
+def reward_epoch_microseconds(
+    config: TrainConfig, device: torch.device, fast: bool, precision: str, epochs: int
+) -> float:
+    """Mean time of one reward-model epoch over REWARD_PAIRS labelled pairs."""
+    dims = _Dims(config.task)
+    torch.manual_seed(0)
+    features = dims.obs_dim + dims.act_dim
+    model = RewardModel(
+        config.reward_ensemble,
+        features,
+        config.reward_hidden,
+        config.reward_layers,
+        config.reward_lr,
+        device,
+    )
+    generator = torch.Generator().manual_seed(0)
+    segments = torch.randn((REWARD_PAIRS, config.segment_length, features), generator=generator)
+    first = torch.randint(0, REWARD_PAIRS, (REWARD_PAIRS,), generator=generator)
+    second = torch.randint(0, REWARD_PAIRS, (REWARD_PAIRS,), generator=generator)
+    labels = torch.randint(0, 2, (REWARD_PAIRS,), generator=generator).float()
+    segments, first, second, labels = (t.to(device) for t in (segments, first, second, labels))
+
+    def train(count: int) -> None:  # stop_accuracy above 1: every epoch runs
+        minibatch = config.reward_minibatch
+        model.train(segments, first, second, labels, count, minibatch, 2.0, generator, not fast)
+
+    with matmul_precision(precision):
+        train(1)  # warm-up: allocator, kernels
+        seconds = _timed(device, lambda: train(epochs))
+    return 1e6 * seconds / epochs
+
+
+def loop_rates(
+    config: TrainConfig, device: torch.device, fast: bool, precision: str, steps: int
+) -> dict[str, float]:
+    """The full training loop: steps per second after the first feedback session, and the
+    seconds of that session and of one evaluation episode."""
+    dims = _Dims(config.task)
+    first = 2 * dims.episode_length
+    config = replace(
+        config,
+        path="fast" if fast else "reference",
+        precision=precision,
+        seed_steps=dims.episode_length,
+        unsup_steps=dims.episode_length,
+        steps=first + steps,
+        max_feedback=config.reward_batch,
+        feedback_frequency=first + steps,
+        eval_every=first + steps,
+        eval_episodes=1,
+        checkpoint_every=10 * (first + steps),
+        device=device.type,
+    )
+    marks: dict[int, float] = {}
+    with tempfile.TemporaryDirectory(prefix="seqrank-bench-") as folder:
+        trainer = Trainer(config, RunDir.create(Path(folder) / "run", config, device.type))
+        durations = _time_phases(trainer, ("_finish_feedback", "_evaluate"), device)
+
+        def mark(step: int, live: dict[str, Any]) -> None:
+            synchronize(device)
+            marks.setdefault(step, time.perf_counter())
+
+        trainer.progress = mark
+        trainer.train()
+    start = first + 100  # after the session and its updates_after_reset updates
+    end = first + steps - 100  # before the final evaluation
+    if end <= start or start not in marks or end not in marks:
+        raise ValueError(f"--loop-steps {steps} is too short: it needs at least 300")
+    return {
+        "steps_per_s": (end - start) / (marks[end] - marks[start]),
+        "session_s": durations["_finish_feedback"],
+        "eval_episode_s": durations["_evaluate"],
+    }
+
+
+def _time_phases(
+    trainer: Trainer, names: tuple[str, ...], device: torch.device
+) -> dict[str, float]:
+    """Wrap the trainer's phase methods to record how long their (last) call took."""
+    durations: dict[str, float] = dict.fromkeys(names, 0.0)
+    for name in names:
+        method = getattr(trainer, name)
+
+        def timed(*args: Any, _name: str = name, _method: Any = method) -> Any:
+            synchronize(device)
+            started = time.perf_counter()
+            result = _method(*args)
+            synchronize(device)
+            durations[_name] = time.perf_counter() - started
+            return result
+
+        setattr(trainer, name, timed)
+    return durations

@@ -1,0 +1,99 @@
+"""`seqrank bench`: both paths timed in one run, written as JSON and Markdown."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from seqrank.bench.report import format_markdown
+from seqrank.bench.suite import ratios, summarise
+from seqrank.cli import main
+from seqrank.config import resolve_config
+
+TINY = ["--set", "hidden=32", "--set", "batch=32", "--set", "reward_hidden=32"]
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "bench-cpu"
+    args = ["bench", "--task", "dmc:cartpole_swingup", "--device", "cpu", "--repeats", "2"]
+    args += ["--updates", "5", "--reward-epochs", "1", "--loop-steps", "300", *TINY]
+    assert main([*args, "--out", str(out)]) == 0
+    return out
+
+
+def test_bench_writes_every_number_for_both_paths(bench):
+    result = json.loads(bench.with_suffix(".json").read_text())
+    assert result["settings"]["hidden"] == 32 and result["settings"]["repeats"] == 2
+    assert set(result["variants"]) == {"reference", "fast-fp32"}
+    for row in result["variants"].values():
+        assert len(row["update_us_rounds"]) == len(row["loop_steps_per_s_rounds"]) == 2
+        for key in ("update_us", "reward_epoch_us", "loop_steps_per_s", "session_s"):
+            assert row[key] > 0, key
+        assert row["update_us"] == pytest.approx(sum(row["update_us_rounds"]) / 2, abs=0.1)
+        assert row["capture_s"] == 0.0  # no CUDA graph on a CPU
+    ref, fast = result["variants"]["reference"], result["variants"]["fast-fp32"]
+    assert result["ratios"]["fast-fp32"]["update"] == pytest.approx(
+        ref["update_us"] / fast["update_us"]
+    )
+    assert result["ratios"]["fast-fp32"]["loop"] == pytest.approx(
+        fast["loop_steps_per_s"] / ref["loop_steps_per_s"]
+    )
+    markdown = bench.with_suffix(".md").read_text()
+    assert "| SAC update (µs) |" in markdown and "fast-fp32 / reference" in markdown
+    assert "Command: `seqrank bench --task dmc:cartpole_swingup --device cpu" in markdown
+
+
+def test_projection_adds_steps_sessions_and_evaluations():
+    config = resolve_config("walker_walk", "paper", {})  # 500K steps, 10 sessions
+    rounds = [{"us": 100.0, "capture_s": 1.0}, {"us": 300.0, "capture_s": 2.0}]
+    loops = [{"steps_per_s": 1000.0, "session_s": 2.0, "eval_episode_s": 0.5}] * 3
+    row = summarise({"update": rounds, "reward": [5.0, 7.0], "loop": loops}, config)
+    assert row["update_us"] == 200.0 and row["capture_s"] == 2.0 and row["reward_epoch_us"] == 6
+    evaluations = 500_000 // 10_000
+    assert row["projected_full_run_s"] == pytest.approx(500 + 10 * 2.0 + evaluations * 10 * 0.5)
+    faster = dict(row, update_us=50.0, loop_steps_per_s=4000.0)
+    table = ratios({"reference": row, "fast-tf32": faster})["fast-tf32"]
+    assert table["update"] == 4.0 and table["loop"] == 4.0
+    result = {
+        "device": "test",
+        "torch": "x",
+        "settings": {
+            "task": "walker_walk",
+            "scale": "paper",
+            "hidden": 1024,
+            "layers": 2,
+            "batch": 1024,
+            "reward_ensemble": 3,
+            "reward_hidden": 256,
+            "steps": 500_000,
+            "sessions": 10,
+            "eval_every": 10_000,
+            "eval_episodes": 10,
+            "repeats": 3,
+            "updates": 200,
+            "reward_epochs": 5,
+            "loop_steps": 2000,
+        },
+        "variants": {"reference": row, "fast-tf32": faster},
+        "ratios": {"fast-tf32": table},
+    }
+    assert "| SAC update (µs) | 200 | 50 | 4.00x |" in format_markdown(result)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--precisions", "fp16"], "unknown precision 'fp16'; accepted: fp32, tf32, bf16"),
+        (["--loop-steps", "50"], "--loop-steps 50 is too short"),
+        (["--task", "block:place"], "learns with DQN"),
+        (["--set", "hidden"], "expected FIELD=VALUE"),
+        (["--set", "hidden=big"], "'big' is not a int"),
+        (["--repeats", "0"], "--repeats must be at least 1"),
+    ],
+)
+def test_bad_bench_options_are_named(args, message, capsys, tmp_path):
+    assert main(["bench", "--device", "cpu", "--out", str(tmp_path / "b"), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
