@@ -194,6 +194,8 @@ def test_a_fast_run_goes_through_every_phase(fast_run):
 def test_a_resumed_fast_run_ends_with_the_same_numbers(fast_run, tmp_path):
     resumed, state = resume_after_kill(tmp_path, tiny_config(path="fast"))
     assert state["next_action"] is not None  # the action computed ahead is kept
+    # the step-1600 evaluation was still running in the background at the checkpoint
+    assert [p["step"] for p in state["pending_evaluations"]] == [1600]
     rows = without_timing(resumed.run_dir.read_metrics())
     assert rows == without_timing(fast_run.run_dir.read_metrics())
     resumed_actor, finished_actor = resumed.agent.actor, fast_run.agent.actor
@@ -250,3 +252,20 @@ def test_graph_updates_on_cuda_learn_like_eager_ones():
         agent.update_from_buffer(buffer, ROWS, generator)
     assert agent.updates == 302
     assert agent.last_metrics["critic_loss"] < first
+
+
+def test_background_evaluation_scores_the_policy_of_its_step(fast_run):
+    """The final evaluation ran in the worker process; playing the final actor here with
+    the same seeds gives the same returns."""
+    from seqrank.envs import make_env
+    from seqrank.evaluation import evaluate_policy
+    from seqrank.loop import episode_seed
+
+    config, c = fast_run.config, fast_run.counters
+    last = [r for r in fast_run.run_dir.read_metrics() if r["kind"] == "eval"][-1]
+    assert last["step"] == config.steps and c.last_eval_return == last["eval_return"]
+    seeds = [episode_seed(config.seed, 1, c.evaluations - 1, i) for i in range(1)]
+    env = make_env(config.task, config.seed)
+    score = evaluate_policy(fast_run.agent, env, seeds, torch.Generator())
+    assert last["eval_return"] == pytest.approx(float(np.mean(score.returns)), rel=1e-4)
+    assert fast_run._evaluator is None  # the worker process was shut down

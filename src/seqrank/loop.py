@@ -25,7 +25,8 @@ import torch
 from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer, Segments
 from seqrank.config import DEVICES, TrainConfig
 from seqrank.envs import make_env
-from seqrank.evaluation import evaluate_policy, reward_quality
+from seqrank.eval_worker import BackgroundEvaluator, PendingEvaluation, host_copy, score_row
+from seqrank.evaluation import PolicyScore, evaluate_policy, reward_quality
 from seqrank.fast_sac import FastSAC
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SessionRecord
@@ -191,15 +192,24 @@ class Trainer:
         # fast path: the next action is computed before this step's update is launched, so
         # the simulator steps on the host while the GPU updates (one update stale)
         self._next_action: np.ndarray | None = None
+        self._evaluator: BackgroundEvaluator | None = None  # fast path: a separate process
+        self._resubmit: list[dict[str, Any]] = []
         self._started = time.perf_counter()
 
     # ---- the loop -------------------------------------------------------------------
     def train(self) -> dict[str, Any]:
-        with matmul_precision(self.precision):
-            return self._train()
+        try:
+            with matmul_precision(self.precision):
+                return self._train()
+        finally:
+            if self._evaluator is not None:
+                self._evaluator.close()
+                self._evaluator = None
 
     def _train(self) -> dict[str, Any]:
         config, c = self.config, self.counters
+        if self._resubmit:
+            self._background_evaluator()
         obs, info = self.env.reset(seed=episode_seed(config.seed, 0, c.episode))
         context = info.get("task_index")
         tick = time.perf_counter()
@@ -222,6 +232,7 @@ class Trainer:
                 self._log_training()
             if c.step % config.eval_every == 0 or c.step == config.steps:
                 self._evaluate()
+            self._collect_evaluations(everything=c.step == config.steps)
             now = time.perf_counter()
             c.train_seconds, tick = c.train_seconds + now - tick, now
             if self.progress is not None and (c.step % 100 == 0 or c.step == config.steps):
@@ -423,29 +434,51 @@ class Trainer:
         )
 
     def _evaluate(self) -> None:
+        """Evaluate now (reference path), or hand the actor to the evaluation process and
+        log the scores `eval_every / 2` steps later (fast path)."""
         config, c = self.config, self.counters
         seeds = [
             episode_seed(config.seed, 1, c.evaluations, i) for i in range(config.eval_episodes)
         ]
-        score = evaluate_policy(self.agent, self.eval_env, seeds, self.generator)
-        returns, successes = score.returns, score.successes
         c.evaluations += 1
-        c.last_eval_return = float(np.mean(returns))
-        c.last_eval_success = 100.0 * float(np.mean(successes))
-        self.run_dir.append_metrics(
-            {
-                "step": c.step,
-                "kind": "eval",
-                "eval_return": c.last_eval_return,
-                "eval_return_std": float(np.std(returns)),
-                "eval_success_rate": c.last_eval_success,
-                "total_asked": c.asked,
-                "total_inferred": c.inferred,
-                **self.agent.eval_metrics(),
-                "steps_per_second": c.step / max(c.train_seconds, 1e-9),
-                "wall_seconds": c.train_seconds,
-            }
+        context = {
+            "total_asked": c.asked,
+            "total_inferred": c.inferred,
+            **self.agent.eval_metrics(),
+            "steps_per_second": c.step / max(c.train_seconds, 1e-9),
+            "wall_seconds": c.train_seconds,
+        }
+        if not self.fast:
+            score = evaluate_policy(self.agent, self.eval_env, seeds, self.generator)
+            self._log_evaluation(c.step, score, context)
+            return
+        collect_at = c.step + max(config.eval_every // 2, 1)
+        actor = host_copy(self.agent.actor)
+        self._background_evaluator().submit(
+            PendingEvaluation(c.step, collect_at, context, seeds, actor)
         )
+
+    def _background_evaluator(self) -> BackgroundEvaluator:
+        if self._evaluator is None:
+            config, env = self.config, self.env
+            self._evaluator = BackgroundEvaluator(
+                config.task, config.seed, env.obs_dim, env.act_dim, config.hidden, config.layers
+            )
+            for state in self._resubmit:  # pending when the checkpoint was written
+                self._evaluator.submit(PendingEvaluation(**state))
+            self._resubmit = []
+        return self._evaluator
+
+    def _collect_evaluations(self, everything: bool = False) -> None:
+        if self._evaluator is not None:
+            for pending, score in self._evaluator.due(self.counters.step, everything):
+                self._log_evaluation(pending.step, score, pending.row)
+
+    def _log_evaluation(self, step: int, score: PolicyScore, context: dict[str, Any]) -> None:
+        c = self.counters
+        row = score_row(score)
+        c.last_eval_return, c.last_eval_success = row["eval_return"], row["eval_success_rate"]
+        self.run_dir.append_metrics({"step": step, "kind": "eval", **row, **context})
 
     def _log_training(self) -> None:
         c = self.counters
@@ -507,6 +540,8 @@ class Trainer:
                 "rng": self.rng.bit_generator.state,
                 "generator": self.generator.get_state(),
                 "next_action": self._next_action,
+                "pending_evaluations": self._evaluator.state_dict() if self._evaluator else [],
+                "metrics_rows": len(self.run_dir.read_metrics()),
             }
         )
 
@@ -521,4 +556,5 @@ class Trainer:
         self.rng.bit_generator.state = state["rng"]
         self.generator.set_state(state["generator"])
         self._next_action = state.get("next_action")
-        self.run_dir.truncate_metrics(self.counters.step)
+        self._resubmit = state.get("pending_evaluations", [])
+        self.run_dir.truncate_metrics(self.counters.step, state.get("metrics_rows"))

@@ -80,9 +80,11 @@ class RunDir:
         lines = self.metrics_path.read_text().splitlines()
         return [json.loads(line) for line in lines if line.strip()]
 
-    def truncate_metrics(self, step: int) -> None:
-        """Drop rows written after the checkpoint at `step` (they will be written again)."""
-        kept = [row for row in self.read_metrics() if row["step"] <= step]
+    def truncate_metrics(self, step: int, rows: int | None = None) -> None:
+        """Drop rows written after the checkpoint at `step` (they will be written again):
+        rows of later steps, and beyond the first `rows` rows when the checkpoint counted
+        them (an evaluation finished in the background is logged after its step)."""
+        kept = [row for row in self.read_metrics()[:rows] if row["step"] <= step]
         tmp = self.metrics_path.with_suffix(".tmp")
         tmp.write_text("".join(json.dumps(row) + "\n" for row in kept))
         os.replace(tmp, self.metrics_path)

@@ -126,7 +126,8 @@ def loop_rates(
     config: TrainConfig, device: torch.device, fast: bool, precision: str, steps: int
 ) -> dict[str, float]:
     """The full training loop: steps per second after the first feedback session, and the
-    seconds of that session and of one evaluation episode."""
+    seconds training waits for that session and for one evaluation episode (the fast path
+    evaluates in another process: only the hand-over counts)."""
     dims = _Dims(config.task)
     first = 2 * dims.episode_length
     config = replace(

@@ -10,7 +10,7 @@ ROWS = (
     ("loop (env steps/s)", "loop_steps_per_s", "loop", "{:.1f}"),
     ("projected full run (min)", "projected_full_run_s", "projected_full_run", "{:.1f}"),
     ("feedback session (s)", "session_s", None, "{:.2f}"),
-    ("evaluation episode (s)", "eval_episode_s", None, "{:.2f}"),
+    ("evaluation, time training waits (s)", "eval_episode_s", None, "{:.2f}"),
     ("CUDA graph capture (s)", "capture_s", None, "{:.2f}"),
 )
 
