@@ -27,6 +27,7 @@ class Batch:
     not_done: torch.Tensor  # 0 only at true terminals; time limits are not terminal
 
 
+STAGING_ROWS = 16  # pinned host rows the fast path's adds cycle through
 COLUMNS = ("obs", "action", "next_obs", "true_reward", "reward", "not_done")
 
 
@@ -69,6 +70,8 @@ class ReplayBuffer:
         self.size_t = torch.zeros((), dtype=torch.float32, device=self.storage)
         self.index, self.size = 0, 0
         self._staging: torch.Tensor | None = None
+        self._staging_events: dict[int, Any] = {}
+        self._staged = 0
 
     def __len__(self) -> int:
         return self.size
@@ -108,15 +111,21 @@ class ReplayBuffer:
     ) -> None:
         """The fast path's add: one asynchronous copy from pinned memory, and the learned
         reward computed where the table lives (no host round trip)."""
+        cuda = self.storage.type == "cuda"
         if self._staging is None:
-            pin = self.storage.type == "cuda"
-            # a small ring, so a row is never rewritten while its copy may still be queued
-            # (the trainer reads an action back every step, which drains older copies)
-            self._staging = torch.zeros((8, self.width), pin_memory=pin)
-        slot = self._staging[self.size % len(self._staging)]
+            self._staging = torch.zeros((STAGING_ROWS, self.width), pin_memory=cuda)
+        k = self._staged % STAGING_ROWS
+        self._staged += 1
+        event = self._staging_events.get(k)
+        if event is not None:  # a pinned row is rewritten only once its copy is done
+            event.synchronize()
+        slot = self._staging[k]
         slot.numpy()[:] = self.row(obs, action, true_reward, 0.0, next_obs, terminated)
         i = self.index
         self.write_row(slot)
+        if cuda:
+            self._staging_events[k] = torch.cuda.Event()
+            self._staging_events[k].record()
         if reward_fn is not None:
             with torch.no_grad():
                 self.reward[i : i + 1] = reward_fn(self.obs[i : i + 1], self.action[i : i + 1])

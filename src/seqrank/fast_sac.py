@@ -184,7 +184,8 @@ class FastSAC:
         self, buffer: ReplayBuffer, batch_size: int, generator: torch.Generator
     ) -> None:
         """The hot-loop update: on CUDA a replay of the captured graph, else eager."""
-        if not self.graphs:
+        if not self.graphs or not self.actor_opt.state:
+            # eager; also the very first update, which creates the optimisers' state
             self.update(buffer.sample(batch_size, generator), generator)
             return
         if self._graph_key != (id(buffer), batch_size):

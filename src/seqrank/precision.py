@@ -44,5 +44,6 @@ def matmul_precision(precision: str) -> Iterator[None]:
 def autocast(precision: str, device: torch.device) -> contextlib.AbstractContextManager[None]:
     """bf16 autocast for forward passes when asked for; a no-op otherwise."""
     if precision == "bf16":
-        return torch.autocast(device.type, dtype=torch.bfloat16)
+        # no cast cache: casts made while a CUDA graph is captured must not be freed after
+        return torch.autocast(device.type, dtype=torch.bfloat16, cache_enabled=False)
     return contextlib.nullcontext()
