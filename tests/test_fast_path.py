@@ -11,8 +11,10 @@ import torch
 from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.config import resolve_config
 from seqrank.fast_sac import FastSAC
+from seqrank.loop import Trainer
 from seqrank.precision import resolve_precision
 from seqrank.reward_model import RewardModel
+from seqrank.runs import RunDir
 from seqrank.sac import SAC, SACSettings
 from test_training import resume_after_kill, run, tiny_config, without_timing
 
@@ -126,6 +128,30 @@ def test_critic_reset_happens_in_place():
         assert torch.equal(a, b)
     for state in fast.critic_opt.state.values():
         assert all(float(v.abs().sum()) == 0 for v in state.values())
+
+
+def test_the_capture_warm_up_is_undone_completely():
+    """Before a CUDA graph is captured, warm-up updates run and are then rolled back: the
+    snapshot must hold every tensor an update changes (checked here on the CPU)."""
+    _, fast = twins()
+    generator = torch.Generator().manual_seed(1)
+    fast.update(random_batch(generator), generator)  # the optimisers' state exists
+    saved = fast._snapshot()
+    before = fast.state_dict()
+    before = {k: copy.deepcopy(v) for k, v in before.items()}
+    for _ in range(4):  # two of them also move the target critics
+        fast.update(random_batch(generator), generator)
+    fast._restore(saved)
+    fast.updates = before["updates"]
+    after = fast.state_dict()
+    for part in ("actor", "critic", "critic_target"):
+        for name, tensor in before[part].items():
+            assert torch.equal(after[part][name], tensor), (part, name)
+    assert torch.equal(after["log_alpha"], before["log_alpha"])
+    for part in ("actor_opt", "critic_opt", "alpha_opt"):
+        for index, state in before[part]["state"].items():
+            for key, value in state.items():
+                assert torch.equal(after[part]["state"][index][key], value), (part, key)
 
 
 def test_staged_adds_write_the_rows_and_learned_rewards_of_plain_adds():
@@ -269,3 +295,27 @@ def test_background_evaluation_scores_the_policy_of_its_step(fast_run):
     score = evaluate_policy(fast_run.agent, env, seeds, torch.Generator())
     assert last["eval_return"] == pytest.approx(float(np.mean(score.returns)), rel=1e-4)
     assert fast_run._evaluator is None  # the worker process was shut down
+
+
+def test_a_run_on_path_auto_resumes_on_the_path_that_wrote_its_checkpoint(fast_run, tmp_path):
+    """A run started with path auto on a GPU (fast) and resumed on a CPU (where auto means
+    reference) continues on the fast path; a run set to the other path is refused."""
+    import json
+
+    from seqrank.loop import open_trainer
+
+    with pytest.raises(KeyboardInterrupt):
+        run(tmp_path / "gpu-run", tiny_config(path="fast"), stop_at=2500)
+    directory = RunDir.open(tmp_path / "gpu-run")
+    saved = json.loads(directory.config_path.read_text())
+    directory.config_path.write_text(json.dumps({**saved, "path": "auto"}))
+    with pytest.raises(ValueError, match="written by the fast path"):
+        Trainer(tiny_config(path="reference"), directory).load_checkpoint(
+            directory.load_checkpoint()
+        )
+    trainer, state = open_trainer(Trainer, directory.read_config(), directory)
+    assert state is not None and trainer.fast
+    trainer.train()
+    assert without_timing(directory.read_metrics()) == without_timing(
+        fast_run.run_dir.read_metrics()
+    )

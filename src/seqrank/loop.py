@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -138,6 +138,21 @@ def make_agent(
     if fast:
         return FastSAC(env.obs_dim, env.act_dim, settings, device, precision)
     return SAC(env.obs_dim, env.act_dim, settings, device)
+
+
+def open_trainer(
+    factory: Callable[[TrainConfig, RunDir], Trainer], config: TrainConfig, run: RunDir
+) -> tuple[Trainer, dict[str, Any] | None]:
+    """A trainer for `run`, continued from its checkpoint when it has one. A run with
+    `path auto` continues on the path that wrote the checkpoint (their agents' weights are
+    laid out differently), whatever device it resumes on."""
+    state = run.load_checkpoint()
+    if state is not None and config.path == "auto" and "path" in state:
+        config = replace(config, path=state["path"])
+    trainer = factory(config, run)
+    if state is not None:
+        trainer.load_checkpoint(state)
+    return trainer, state
 
 
 class Trainer:
@@ -542,10 +557,17 @@ class Trainer:
                 "next_action": self._next_action,
                 "pending_evaluations": self._evaluator.state_dict() if self._evaluator else [],
                 "metrics_rows": len(self.run_dir.read_metrics()),
+                "path": "fast" if self.fast else "reference",
             }
         )
 
     def load_checkpoint(self, state: dict[str, Any]) -> None:
+        saved = state.get("path", "reference")
+        if saved != ("fast" if self.fast else "reference"):
+            raise ValueError(
+                f"the checkpoint was written by the {saved} path; this run is set to the other "
+                f"one (path {self.config.path!r}): resume it with its own path"
+            )
         self.counters = Counters(**state["counters"])
         self.agent.load_state_dict(state["agent"])
         self.reward_model.load_state_dict(state["reward_model"])

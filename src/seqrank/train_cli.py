@@ -90,11 +90,10 @@ def prepare_run(
             raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
         run = RunDir.open(args.resume)
         config = run.read_config()
-        trainer = trainer_cls(config, run)
-        state = run.load_checkpoint()
-        if state is not None:
-            trainer.load_checkpoint(state)
-        else:  # killed before its first checkpoint: start over, dropping what it logged
+        from seqrank.loop import open_trainer
+
+        trainer, state = open_trainer(trainer_cls, config, run)
+        if state is None:  # killed before its first checkpoint: start over, dropping what it logged
             run.truncate_metrics(0)
         err.print(f"resuming {run.path} at step {trainer.counters.step}")
         return trainer, config, run

@@ -214,7 +214,10 @@ def _saved_policy(run_dir: Path, env: Any) -> Any:
     if state is None:
         raise ValueError(f"{run_dir} has no checkpoint yet, so it has no policy to roll out")
     agent = make_agent(run.read_config(), env, torch.device("cpu"))
-    agent.load_state_dict(state["agent"])
+    if hasattr(agent, "actor"):  # SAC: only the actor acts (the critics' layout is per path)
+        agent.actor.load_state_dict(state["agent"]["actor"])
+    else:
+        agent.load_state_dict(state["agent"])
     return agent
 
 

@@ -264,7 +264,7 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
 def _study(args: argparse.Namespace, say: Any) -> int:
     from seqrank.config import resolve_config
     from seqrank.labelling.app import open_hub, study_order, train_with_person, wait_survey
-    from seqrank.loop import resolve_device
+    from seqrank.loop import open_trainer, resolve_device
     from seqrank.runs import RunDir
 
     if hasattr(args, "resume") or hasattr(args, "out") or hasattr(args, "scheme"):
@@ -304,10 +304,7 @@ def _study(args: argparse.Namespace, say: Any) -> int:
                     config = run.read_config()
                 else:
                     run = RunDir.create(run_path, config, str(device))
-                trainer = _human_trainer(hub, method, True, say)(config, run)
-                state = run.load_checkpoint()
-                if state is not None:
-                    trainer.load_checkpoint(state)
+                trainer, _ = open_trainer(_human_trainer(hub, method, True, say), config, run)
                 say(f"method {method}: training in {run_path}")
                 if train_with_person(trainer, hub, say) is None:
                     break

@@ -28,7 +28,7 @@ def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]
     import torch
 
     from seqrank.config import TrainConfig
-    from seqrank.loop import Trainer
+    from seqrank.loop import Trainer, open_trainer
     from seqrank.runs import RunDir
 
     torch.set_num_threads(threads)
@@ -43,11 +43,8 @@ def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]
         run = RunDir.open(directory)
         if run.read_config() != settings:
             raise ValueError(f"{directory} holds a run with other settings; move it away")
-        trainer = Trainer(settings, run)
-        state = run.load_checkpoint()
-        if state is not None:
-            trainer.load_checkpoint(state)
-        else:
+        trainer, state = open_trainer(Trainer, settings, run)
+        if state is None:
             run.truncate_metrics(0)
         status = "resumed"
     else:
