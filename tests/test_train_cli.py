@@ -91,6 +91,8 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
         (["--steps", "-5"], "steps must be positive, got -5"),
         (["--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
         (["--resume", "/nonexistent/run"], "no run directory at /nonexistent/run"),
+        (["--path", "quick"], "unknown path 'quick'; accepted: auto, reference, fast"),
+        (["--precision", "fp16"], "unknown precision 'fp16'; accepted: auto, fp32, tf32, bf16"),
     ],
 )
 def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
@@ -99,6 +101,14 @@ def test_bad_input_is_one_clear_line_and_exit_code_2(args, message):
     assert result.returncode == 2, result.stderr
     assert message in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_precision_the_path_lacks_is_refused_before_anything_is_written(tmp_path):
+    # on a CPU, path auto is the reference, which is strict fp32
+    result = run_cli("--device", "cpu", "--precision", "tf32", "--out", str(tmp_path / "run"))
+    assert result.returncode == 2
+    assert "precision 'tf32' needs the fast path" in result.stderr
+    assert not (tmp_path / "run").exists()
 
 
 def test_resume_refuses_new_settings_and_create_refuses_a_used_directory(tmp_path):

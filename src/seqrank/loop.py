@@ -24,7 +24,7 @@ import torch
 
 from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer, Segments
 from seqrank.config import DEVICES, TrainConfig
-from seqrank.envs import make_env
+from seqrank.envs import canonical_task, make_env
 from seqrank.eval_worker import BackgroundEvaluator, PendingEvaluation, host_copy, score_row
 from seqrank.evaluation import PolicyScore, evaluate_policy, reward_quality
 from seqrank.fast_sac import FastSAC
@@ -72,6 +72,14 @@ def resolve_path(name: str, device: torch.device, discrete: bool) -> bool:
     if name == "auto":
         return device.type == "cuda" and not discrete
     return name == "fast"
+
+
+def resolve_path_and_precision(config: TrainConfig, device: torch.device) -> tuple[bool, str]:
+    """(fast path?, precision) for a run on `device`; ValueError for a precision the path
+    does not offer."""
+    discrete = canonical_task(config.task)[0] == "block"
+    fast = resolve_path(config.path, device, discrete)
+    return fast, resolve_precision(config.precision, device, fast)
 
 
 def resolve_device(name: str) -> torch.device:
@@ -181,8 +189,7 @@ class Trainer:
                 "--seed-steps or --unsup-steps"
             )
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
-        self.fast = resolve_path(config.path, self.device, self.env.discrete)
-        self.precision = resolve_precision(config.precision, self.device, self.fast)
+        self.fast, self.precision = resolve_path_and_precision(config, self.device)
         self.agent = make_agent(config, self.env, self.device, self.fast, self.precision)
         self.reward_model = RewardModel(
             config.reward_ensemble,

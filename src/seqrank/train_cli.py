@@ -103,6 +103,9 @@ def prepare_run(
         scale = "paper" if device.type == "cuda" else "small"
     task = given.pop("task", TrainConfig.task)
     config = resolve_config(task, scale, given)
+    from seqrank.loop import resolve_path_and_precision
+
+    resolve_path_and_precision(config, device)  # before anything is written
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
     run = RunDir.create(path, config, str(device))
     trainer = trainer_cls(config, run)
