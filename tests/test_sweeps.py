@@ -104,6 +104,10 @@ def test_expansion_covers_the_grid_with_names_and_settings(tmp_path):
             {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"max_feedback": 0}},
             "max_feedback must be positive",
         ),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"precision": "bf16"}},
+            "precision 'bf16' needs the fast path",  # path auto on a CPU is the reference
+        ),
     ],
 )
 def test_bad_sweep_files_name_the_problem(data, message):

@@ -127,6 +127,8 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
         where = f"{source}: run {task} {scheme} {backbone} {teacher} {variant or ''} seed {seed}"
         try:
             config = resolve_config(task, scale, settings)
+            if device in ("cpu", "cuda"):  # with auto the path depends on where it runs
+                _check_path(config, device)
         except (ValueError, TypeError) as problem:
             raise ValueError(f"{where}: {problem}") from None
         suffix = f"_{variant}" if variant else ""
@@ -137,6 +139,15 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)
+
+
+def _check_path(config: TrainConfig, device: str) -> None:
+    """A precision that the run's path does not offer on `device` (ValueError)."""
+    import torch
+
+    from seqrank.loop import resolve_path_and_precision
+
+    resolve_path_and_precision(config, torch.device(device))
 
 
 def _names(data: dict[str, Any], key: str, source: str) -> list[str]:
