@@ -1,0 +1,48 @@
+"""Does torch.compile speed up the fast SAC update here? Times 50 eager updates, compiles
+`FastSAC._step`, then times 50 compiled ones (walker sizes of the small preset).
+
+    .venv/bin/python scripts/compile_probe.py
+"""
+
+from __future__ import annotations
+
+import time
+
+import torch
+
+from seqrank.buffer import Batch
+from seqrank.fast_sac import FastSAC
+from seqrank.sac import SACSettings
+
+
+def main() -> None:
+    settings = SACSettings(256, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+    torch.manual_seed(0)
+    agent = FastSAC(24, 6, settings, torch.device("cpu"))
+    generator = torch.Generator().manual_seed(1)
+    rows = 256
+    batch = Batch(
+        torch.randn(rows, 24, generator=generator),
+        torch.rand(rows, 6, generator=generator) * 2 - 1,
+        torch.randn(rows, 1, generator=generator),
+        torch.randn(rows, 24, generator=generator),
+        torch.ones(rows, 1),
+    )
+
+    def per_update() -> float:
+        started = time.perf_counter()
+        for _ in range(50):
+            agent.update(batch, generator)
+        return (time.perf_counter() - started) / 50 * 1e6
+
+    agent.update(batch, generator)
+    eager = per_update()
+    agent._step = torch.compile(agent._step)  # type: ignore[method-assign]
+    started = time.perf_counter()
+    agent.update(batch, generator)
+    compile_seconds = time.perf_counter() - started
+    print(f"eager {eager:.0f} µs, compiled {per_update():.0f} µs, compile {compile_seconds:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
