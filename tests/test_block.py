@@ -186,21 +186,12 @@ def test_every_scheme_and_teacher_trains_on_block_place(tmp_path, scheme, teache
 
 
 def test_a_resumed_block_run_matches_an_uninterrupted_one(tmp_path):
-    from seqrank.loop import Trainer
-    from seqrank.runs import RunDir
-    from test_training import run, without_timing
+    from test_training import resume_after_kill, run, without_timing
 
     config = block_config()
     finished = run(tmp_path / "full", config)
-    with pytest.raises(KeyboardInterrupt):
-        run(tmp_path / "killed", config, stop_at=1250)
-    directory = RunDir.open(tmp_path / "killed")
-    state = directory.load_checkpoint()
-    assert state is not None and state["counters"]["step"] == 1200
-    resumed = Trainer(directory.read_config(), directory)
-    resumed.load_checkpoint(state)
-    resumed.train()
-    assert without_timing(directory.read_metrics()) == without_timing(
+    resumed, _ = resume_after_kill(tmp_path, config, kill_at=1250, checkpoint=1200)
+    assert without_timing(resumed.run_dir.read_metrics()) == without_timing(
         finished.run_dir.read_metrics()
     )
     for a, b in zip(resumed.agent.q.parameters(), finished.agent.q.parameters(), strict=True):

@@ -92,13 +92,15 @@ def test_different_seed_different_metrics(finished, tmp_path):
     )
 
 
-def resume_after_kill(tmp_path: Path, config) -> tuple[Trainer, dict]:
-    """A run killed at step 2500, resumed from its step-2000 checkpoint to the end."""
+def resume_after_kill(
+    tmp_path: Path, config, kill_at: int = 2500, checkpoint: int = 2000
+) -> tuple[Trainer, dict]:
+    """A run killed at step `kill_at`, resumed from its `checkpoint` step to the end."""
     with pytest.raises(KeyboardInterrupt):
-        run(tmp_path / "killed", config, stop_at=2500)
+        run(tmp_path / "killed", config, stop_at=kill_at)
     directory = RunDir.open(tmp_path / "killed")
     state = directory.load_checkpoint()
-    assert state is not None and state["counters"]["step"] == 2000
+    assert state is not None and state["counters"]["step"] == checkpoint
     resumed = Trainer(directory.read_config(), directory)
     resumed.load_checkpoint(state)
     resumed.train()
