@@ -10,9 +10,9 @@ import time
 
 import torch
 
+from seqrank.agents.fast_sac import FastSAC
+from seqrank.agents.sac import SACSettings
 from seqrank.buffer import Batch
-from seqrank.fast_sac import FastSAC
-from seqrank.sac import SACSettings
 
 
 def main() -> None:

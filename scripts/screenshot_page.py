@@ -15,15 +15,14 @@ import httpx
 from playwright.sync_api import sync_playwright
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_labelling_browser import CHROMIUM, CHROMIUM_ARGS  # noqa: E402
-
-from seqrank.labelling.app import (  # noqa: E402
+from seqrank.labelling.app import (
     OfflineOptions,
     PageServer,
     ServerOptions,
     open_hub,
     run_offline,
 )
+from test_labelling_browser import CHROMIUM, CHROMIUM_ARGS
 
 
 def main() -> None:

@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 import torch
 
-from seqrank.block import (
+from seqrank.agents.dqn import DQN, DQNSettings, EpsilonSchedule
+from seqrank.buffer import Batch
+from seqrank.config import resolve_config
+from seqrank.envs import make_env
+from seqrank.envs.block import (
     BLOCK_HALF,
     EPISODE_STEPS,
     GOAL,
@@ -21,10 +25,6 @@ from seqrank.block import (
     direction_of,
     one_hot,
 )
-from seqrank.buffer import Batch
-from seqrank.config import resolve_config
-from seqrank.dqn import DQN, DQNSettings, EpsilonSchedule
-from seqrank.envs import make_env
 
 
 def test_geometry_matches_the_paper():

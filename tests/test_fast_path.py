@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import torch
 
+from seqrank.agents.fast_sac import FastSAC
+from seqrank.agents.precision import matmul_precision
+from seqrank.agents.sac import SAC, SACSettings
 from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.config import resolve_config
-from seqrank.fast_sac import FastSAC
-from seqrank.loop import Trainer
-from seqrank.precision import matmul_precision, resolve_precision
-from seqrank.reward_model import RewardModel
-from seqrank.runs import RunDir
-from seqrank.sac import SAC, SACSettings
+from seqrank.reward.model import RewardModel
+from seqrank.training.loop import Trainer, resolve_precision
+from seqrank.training.runs import RunDir
 from test_training import resume_after_kill, run, tiny_config, without_timing
 
 CPU = torch.device("cpu")
@@ -293,8 +293,8 @@ def test_background_evaluation_scores_the_policy_of_its_step(fast_run):
     """The final evaluation ran in the worker process; playing the final actor here with
     the same seeds gives the same returns."""
     from seqrank.envs import make_env
-    from seqrank.evaluation import evaluate_policy
-    from seqrank.loop import episode_seed
+    from seqrank.training.evaluation import evaluate_policy
+    from seqrank.training.loop import episode_seed
 
     config, c = fast_run.config, fast_run.counters
     last = [r for r in fast_run.run_dir.read_metrics() if r["kind"] == "eval"][-1]
@@ -311,7 +311,7 @@ def test_a_run_on_path_auto_resumes_on_the_path_that_wrote_its_checkpoint(fast_r
     reference) continues on the fast path; a run set to the other path is refused."""
     import json
 
-    from seqrank.loop import open_trainer
+    from seqrank.training.loop import open_trainer
 
     with pytest.raises(KeyboardInterrupt):
         run(tmp_path / "gpu-run", tiny_config(path="fast"), stop_at=2500)

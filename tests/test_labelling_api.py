@@ -11,8 +11,8 @@ import av
 import pytest
 from fastapi.testclient import TestClient
 
+from seqrank.feedback.label_file import parse_lines
 from seqrank.labelling.app import OfflineOptions, ServerOptions, open_hub, run_offline
-from seqrank.labelling.jsonl import parse_lines
 from seqrank.labelling.server import create_app
 
 TASK = "dmc:cartpole_swingup"

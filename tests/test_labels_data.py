@@ -12,13 +12,14 @@ from fastapi.testclient import TestClient
 
 from seqrank.cli import main
 from seqrank.feedback.closure import augment
+from seqrank.feedback.label_file import read_label_file
 from seqrank.labelling.app import ServerOptions, open_hub
 from seqrank.labelling.db import LabelDB
 from seqrank.labelling.human import HumanSource
-from seqrank.labelling.jsonl import export_file, import_file, read_label_file
+from seqrank.labelling.jsonl import export_file, import_file
 from seqrank.labelling.server import create_app
-from seqrank.loop import Trainer
-from seqrank.runs import RunDir
+from seqrank.training.loop import Trainer
+from seqrank.training.runs import RunDir
 from seqrank.types import Answer, AnsweredQuestion, Question
 from test_labelling_api import Page
 from test_training import tiny_config

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
+from seqrank.agents.mrn import PairBatch, meta_reward_step, outer_loss
+from seqrank.agents.sac import SAC, SACSettings
 from seqrank.buffer import Batch, ReplayBuffer
-from seqrank.mrn import PairBatch, meta_reward_step, outer_loss
-from seqrank.pretrain import RunningMeanStd, knn_distance
-from seqrank.reward_model import RewardModel
-from seqrank.sac import SAC, SACSettings
+from seqrank.reward.entropy import RunningMeanStd, knn_distance
+from seqrank.reward.model import RewardModel
 
 CPU = torch.device("cpu")
 
@@ -142,7 +142,7 @@ def test_mrn_meta_step_changes_the_reward_and_lowers_its_outer_loss():
 
 
 def test_label_store_keeps_provenance_and_gives_recent_pairs_with_their_segments():
-    from seqrank.buffer import Segments
+    from seqrank.episodes import Segments
     from seqrank.feedback.closure import augment
     from seqrank.feedback.labels import LabelStore
     from seqrank.types import Answer, AnsweredQuestion, Question

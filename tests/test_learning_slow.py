@@ -7,8 +7,8 @@ import pytest
 
 from seqrank.config import resolve_config
 from seqrank.envs import make_env
-from seqrank.loop import Trainer, episode_seed
-from seqrank.runs import RunDir
+from seqrank.training.loop import Trainer, episode_seed
+from seqrank.training.runs import RunDir
 
 
 def random_return(task: str, episodes: int) -> float:

@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from seqrank.config import resolve_config
-from seqrank.loop import Trainer
-from seqrank.runs import RunDir
+from seqrank.training.loop import Trainer
+from seqrank.training.runs import RunDir
 
 TIMING = {"steps_per_second", "wall_seconds"}
 

@@ -14,7 +14,7 @@ from rich.table import Table
 
 from seqrank.config import SCALES, TrainConfig, resolve_config
 from seqrank.errors import UsageError
-from seqrank.runs import RunDir
+from seqrank.training.runs import RunDir
 
 # Options that name the run rather than tune it.
 IDENTITY = ("task", "scheme", "teacher", "backbone", "seed", "device")
@@ -68,7 +68,10 @@ def add_run_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run_train(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.loop import Trainer, resolve_device  # torch loads slowly: only when training
+    from seqrank.training.loop import (  # torch loads slowly: only when training
+        Trainer,
+        resolve_device,
+    )
 
     try:
         trainer, config, run = prepare_run(args, err, Trainer, resolve_device)
@@ -90,7 +93,7 @@ def prepare_run(
             raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
         run = RunDir.open(args.resume)
         config = run.read_config()
-        from seqrank.loop import open_trainer
+        from seqrank.training.loop import open_trainer
 
         trainer, state = open_trainer(trainer_cls, config, run)
         if state is None:  # killed before its first checkpoint: start over, dropping what it logged
@@ -103,7 +106,7 @@ def prepare_run(
         scale = "paper" if device.type == "cuda" else "small"
     task = given.pop("task", TrainConfig.task)
     config = resolve_config(task, scale, given)
-    from seqrank.loop import resolve_path_and_precision
+    from seqrank.training.loop import resolve_path_and_precision
 
     resolve_path_and_precision(config, device)  # before anything is written
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)

@@ -67,7 +67,7 @@ def add_bench_parser(commands: Any) -> None:
 def run_bench_command(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.bench.report import format_markdown
     from seqrank.bench.suite import BenchPlan, run_bench
-    from seqrank.loop import resolve_device
+    from seqrank.training.loop import resolve_device
 
     for name in ("repeats", "updates", "reward_epochs"):
         if getattr(args, name) < 1:

@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import torch
 
+from seqrank.agents.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
 from seqrank.config import TrainConfig
-from seqrank.loop import Trainer, make_agent
-from seqrank.precision import matmul_precision
-from seqrank.reward_model import RewardModel
-from seqrank.runs import RunDir
+from seqrank.reward.model import RewardModel
+from seqrank.training.loop import Trainer, make_agent
+from seqrank.training.runs import RunDir
 
 BUFFER_ROWS = 20_000  # transitions in the benchmark's replay buffer
 REWARD_PAIRS = 1_000  # labelled pairs in the reward-training benchmark (400 asked + inferred)

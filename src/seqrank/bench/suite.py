@@ -176,8 +176,8 @@ def full_run(plan: BenchPlan) -> dict[str, Any]:
     import tempfile
     from pathlib import Path
 
-    from seqrank.loop import Trainer
-    from seqrank.runs import RunDir
+    from seqrank.training.loop import Trainer
+    from seqrank.training.runs import RunDir
 
     config = replace(plan.config, path="fast", precision="auto")
     with tempfile.TemporaryDirectory(prefix="seqrank-bench-") as folder:

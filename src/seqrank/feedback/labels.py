@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.buffer import Segments
+from seqrank.episodes import Segments
 from seqrank.feedback.closure import Augmentation
 
 

@@ -2,7 +2,7 @@
 
 Who answers is a `FeedbackSource`: a scripted teacher (B-Pref noise models), a person at
 the labelling page (`seqrank.labelling.human`), or labels recorded earlier
-(`seqrank.labelling.replay`). A source gets the sampled pool and the scheme's chooser and
+(`seqrank.feedback.replay`). A source gets the sampled pool and the scheme's chooser and
 returns the segments it actually used with the session's record; the augmentation and
 storage are the same for all of them.
 """
@@ -14,14 +14,14 @@ from typing import Protocol
 
 import numpy as np
 
-from seqrank.buffer import EpisodeStore, Segments
 from seqrank.config import TrainConfig
+from seqrank.episodes import EpisodeStore, Segments
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import Chooser, SessionRecord, get_scheme, segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.teachers import ScriptedTeacher
-from seqrank.reward_model import RewardModel
+from seqrank.reward.model import RewardModel
 from seqrank.types import Answer
 
 

@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from seqrank.buffer import Episode, EpisodeStore
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task, make_env
+from seqrank.episodes import Episode, EpisodeStore
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -206,8 +206,8 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
 def _saved_policy(run_dir: Path, env: Any) -> Any:
     import torch
 
-    from seqrank.loop import make_agent
-    from seqrank.runs import RunDir
+    from seqrank.training.loop import make_agent
+    from seqrank.training.runs import RunDir
 
     run = RunDir.open(run_dir)
     state = run.load_checkpoint()

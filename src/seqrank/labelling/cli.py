@@ -172,7 +172,7 @@ def _finish(hub: Any, server: Any, directory: Path, args: argparse.Namespace, sa
 
 def _offline(args: argparse.Namespace, say: Any) -> int:
     from seqrank.labelling.app import OfflineOptions, check_task_name, open_hub, run_offline
-    from seqrank.runs import RunDir
+    from seqrank.training.runs import RunDir
 
     if args.policy_run is not None:
         task = RunDir.open(args.policy_run).read_config().task
@@ -209,7 +209,7 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
 def _human_trainer(hub: Any, run_name: str, wait: bool, say: Any) -> Any:
     from seqrank.labelling.app import record_task, training_progress
     from seqrank.labelling.human import HumanSource
-    from seqrank.loop import Trainer
+    from seqrank.training.loop import Trainer
 
     def build(config: Any, run: Any) -> Any:
         trainer = Trainer(
@@ -237,8 +237,8 @@ def _human_overrides(args: argparse.Namespace) -> None:
 
 def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     from seqrank.labelling.app import open_hub, train_with_person
-    from seqrank.loop import resolve_device
-    from seqrank.runs import RunDir
+    from seqrank.training.loop import resolve_device
+    from seqrank.training.runs import RunDir
 
     _human_overrides(args)
     holder: dict[str, Any] = {}
@@ -264,8 +264,8 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
 def _study(args: argparse.Namespace, say: Any) -> int:
     from seqrank.config import resolve_config
     from seqrank.labelling.app import open_hub, study_order, train_with_person, wait_survey
-    from seqrank.loop import open_trainer, resolve_device
-    from seqrank.runs import RunDir
+    from seqrank.training.loop import open_trainer, resolve_device
+    from seqrank.training.runs import RunDir
 
     if hasattr(args, "resume") or hasattr(args, "out") or hasattr(args, "scheme"):
         raise ValueError(

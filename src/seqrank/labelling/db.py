@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from seqrank.buffer import Segments
+from seqrank.episodes import Segments
 
 DB_NAME = "labels.sqlite"
 CHOICES = ("left", "right", "equal", "skip", "timeout")

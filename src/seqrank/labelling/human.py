@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from seqrank.buffer import Segments
+from seqrank.episodes import Segments
 from seqrank.feedback.schemes import SessionRecord, get_scheme
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.clips import ClipRenderer

@@ -28,8 +28,8 @@ def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]
     import torch
 
     from seqrank.config import TrainConfig
-    from seqrank.loop import Trainer, open_trainer
-    from seqrank.runs import RunDir
+    from seqrank.training.loop import Trainer, open_trainer
+    from seqrank.training.runs import RunDir
 
     torch.set_num_threads(threads)
     directory = Path(path)

@@ -1,4 +1,4 @@
-"""Numeric precision of the fast path: fp32, TF32 matmuls, or bf16 autocast.
+"""Numeric precision as a context: fp32, TF32 matmuls, or bf16 autocast.
 
 The switches torch offers for TF32 are process-wide, so every use is scoped: the benchmark
 runs the strict-fp32 reference and the TF32 fast path interleaved in one process.
@@ -10,22 +10,6 @@ import contextlib
 from collections.abc import Iterator
 
 import torch
-
-from seqrank.config import PRECISIONS
-
-
-def resolve_precision(name: str, device: torch.device, fast: bool) -> str:
-    """`auto`: TF32 for the fast path on CUDA, fp32 everywhere else."""
-    if name not in PRECISIONS:
-        raise ValueError(f"unknown precision {name!r}; accepted: {', '.join(PRECISIONS)}")
-    if not fast and name not in ("auto", "fp32"):
-        raise ValueError(
-            f"precision {name!r} needs the fast path: the reference path is strict fp32 "
-            "(use --path fast, or --precision fp32)"
-        )
-    if name == "auto":
-        return "tf32" if fast and device.type == "cuda" else "fp32"
-    return name
 
 
 @contextlib.contextmanager

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.evaluation import PolicyScore, evaluate_policy
-from seqrank.sac import Actor
+from seqrank.agents.sac import Actor
+from seqrank.training.evaluation import PolicyScore, evaluate_policy
 
 _WORKER: dict[str, Any] = {}
 

@@ -27,9 +27,8 @@ from typing import Any
 import torch
 from torch import nn
 
-from seqrank.buffer import Batch, ReplayBuffer
-from seqrank.precision import autocast, matmul_precision
-from seqrank.sac import (
+from seqrank.agents.precision import autocast, matmul_precision
+from seqrank.agents.sac import (
     Actor,
     SACSettings,
     TwinCritic,
@@ -39,6 +38,7 @@ from seqrank.sac import (
     sac_state,
     squashed_gaussian,
 )
+from seqrank.buffer import Batch, ReplayBuffer
 
 WARMUP_UPDATES = 3  # eager runs on a side stream before capture, as CUDA graphs require
 

@@ -14,9 +14,9 @@ import torch
 import torch.nn.functional as F
 from torch.func import functional_call
 
+from seqrank.agents.sac import SAC
 from seqrank.buffer import Batch
-from seqrank.reward_model import RewardModel
-from seqrank.sac import SAC
+from seqrank.reward.model import RewardModel
 
 
 @dataclass(frozen=True)

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from seqrank.buffer import Segments
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task
+from seqrank.episodes import Segments
+from seqrank.feedback.label_file import LabelFile, read_label_file
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import SessionRequest
-from seqrank.labelling.jsonl import LabelFile, read_label_file
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 

@@ -22,9 +22,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # headless; must be set before MuJoCo
 
 from typing import Any
 
-import gymnasium as gym
 import mujoco
 import numpy as np
+
+from seqrank.envs.base import SimEnv
 
 DMC_PAPER_TASKS = ("walker_walk", "cheetah_run", "quadruped_walk", "humanoid_walk", "hopper_hop")
 METAWORLD_PAPER_TASKS = (
@@ -36,7 +37,6 @@ METAWORLD_PAPER_TASKS = (
     "hammer",
 )
 PAPER_TASKS = DMC_PAPER_TASKS + METAWORLD_PAPER_TASKS
-FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 BLOCK_TASKS = ("place",)
@@ -76,89 +76,10 @@ def make_env(name: str, seed: int = 0) -> SimEnv:
     if suite_name == "dmc":
         return DMCEnv(task, seed)
     if suite_name == "block":
-        from seqrank.block import BlockPlaceEnv
+        from seqrank.envs.block import BlockPlaceEnv
 
         return BlockPlaceEnv(seed)
     return MetaWorldEnv(task, seed)
-
-
-class SimEnv(gym.Env[np.ndarray, np.ndarray]):
-    """What the two suites share: spaces, rendering, physics state."""
-
-    name: str
-    episode_length: int
-    discrete = False  # True: actions are one-hot choices (block:place, learned with DQN)
-    _model: Any
-    _data: Any
-
-    def canonical_action(self, action: np.ndarray) -> np.ndarray:
-        """The action as stored for learning (block:place turns scores into a one-hot)."""
-        return action
-
-    def _set_spaces(self, obs_dim: int, act_dim: int) -> None:
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (act_dim,), np.float32)
-        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
-
-    @property
-    def obs_dim(self) -> int:
-        return int(self.observation_space.shape[0])  # type: ignore[index]
-
-    @property
-    def act_dim(self) -> int:
-        return int(self.action_space.shape[0])  # type: ignore[index]
-
-    def get_state(self) -> np.ndarray:
-        """The full physics state of the current step (float64 vector)."""
-        state = np.empty(mujoco.mj_stateSize(self._model, FULL_STATE), dtype=np.float64)
-        mujoco.mj_getState(self._model, self._data, state, FULL_STATE)
-        return state
-
-    def set_state(self, state: np.ndarray) -> None:
-        mujoco.mj_setState(self._model, self._data, np.asarray(state, np.float64), FULL_STATE)
-        mujoco.mj_forward(self._model, self._data)
-
-    def render_frame(self, width: int = 128, height: int = 128) -> np.ndarray:
-        """An RGB uint8 frame (height, width, 3) of the current state."""
-        renderer = self._renderers.get((width, height))
-        if renderer is None:
-            renderer = mujoco.Renderer(self._model, height, width)
-            self._renderers[(width, height)] = renderer
-        renderer.update_scene(self._data, camera=self._camera)
-        if self._fast_rendering:
-            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-        frame = renderer.render()
-        return frame[::-1].copy() if self._flip else frame
-
-    def render_states(
-        self, states: np.ndarray, context: int | None = None, width: int = 128, height: int = 128
-    ) -> np.ndarray:
-        """Frames (T, height, width, 3) of saved states; `context` is the episode's task."""
-        self.restore_context(context)
-        frames = []
-        for state in states:
-            self.set_state(state)
-            frames.append(self.render_frame(width, height))
-        return np.stack(frames)
-
-    def restore_context(self, context: int | None) -> None:
-        """Make the episode-level setting (Meta-World's task) current again."""
-
-    _camera: int | str = 0
-    _flip = False
-    _fast_rendering = False
-
-    def use_fast_rendering(self) -> None:
-        """No shadows, reflections or anti-aliasing: about 8x faster (labelling clips)."""
-        self._fast_rendering = True
-        self._model.vis.quality.offsamples = 0
-        self.close()  # renderers made from now on use the model's new settings
-
-    def close(self) -> None:
-        for renderer in self._renderers.values():
-            renderer.close()
-        self._renderers.clear()
 
 
 class DMCEnv(SimEnv):

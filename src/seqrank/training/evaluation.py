@@ -7,10 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from seqrank.buffer import EpisodeStore, ReplayBuffer
+from seqrank.agents.sac import SAC
+from seqrank.buffer import ReplayBuffer
 from seqrank.envs import SimEnv
-from seqrank.reward_model import RewardModel
-from seqrank.sac import SAC
+from seqrank.episodes import EpisodeStore
+from seqrank.reward.model import RewardModel
 
 CORRELATION_SAMPLE = 20_000
 

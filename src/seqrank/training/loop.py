@@ -22,12 +22,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.buffer import Batch, Episode, EpisodeStore, ReplayBuffer, Segments
-from seqrank.config import DEVICES, TrainConfig
+from seqrank.agents.fast_sac import FastSAC
+from seqrank.agents.mrn import PairBatch, meta_reward_step
+from seqrank.agents.precision import matmul_precision
+from seqrank.agents.sac import SAC, SACSettings
+from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.config import DEVICES, PRECISIONS, TrainConfig
 from seqrank.envs import canonical_task, make_env
-from seqrank.eval_worker import BackgroundEvaluator, PendingEvaluation, host_copy, score_row
-from seqrank.evaluation import PolicyScore, evaluate_policy, reward_quality
-from seqrank.fast_sac import FastSAC
+from seqrank.episodes import Episode, EpisodeStore, Segments
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import (
@@ -38,12 +40,16 @@ from seqrank.feedback.session import (
     store_session,
 )
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
-from seqrank.mrn import PairBatch, meta_reward_step
-from seqrank.precision import matmul_precision, resolve_precision
-from seqrank.pretrain import RunningMeanStd, intrinsic_reward
-from seqrank.reward_model import RewardModel
-from seqrank.runs import RunDir
-from seqrank.sac import SAC, SACSettings
+from seqrank.reward.entropy import RunningMeanStd, intrinsic_reward
+from seqrank.reward.model import RewardModel
+from seqrank.training.eval_worker import (
+    BackgroundEvaluator,
+    PendingEvaluation,
+    host_copy,
+    score_row,
+)
+from seqrank.training.evaluation import PolicyScore, evaluate_policy, reward_quality
+from seqrank.training.runs import RunDir
 
 Progress = Callable[[int, dict[str, Any]], None]
 TRAIN_LOG_EVERY = 1_000  # steps between `train` rows of metrics.jsonl
@@ -82,6 +88,20 @@ def resolve_path_and_precision(config: TrainConfig, device: torch.device) -> tup
     return fast, resolve_precision(config.precision, device, fast)
 
 
+def resolve_precision(name: str, device: torch.device, fast: bool) -> str:
+    """`auto`: TF32 for the fast path on CUDA, fp32 everywhere else."""
+    if name not in PRECISIONS:
+        raise ValueError(f"unknown precision {name!r}; accepted: {', '.join(PRECISIONS)}")
+    if not fast and name not in ("auto", "fp32"):
+        raise ValueError(
+            f"precision {name!r} needs the fast path: the reference path is strict fp32 "
+            "(use --path fast, or --precision fp32)"
+        )
+    if name == "auto":
+        return "tf32" if fast and device.type == "cuda" else "fp32"
+    return name
+
+
 def resolve_device(name: str) -> torch.device:
     if name not in DEVICES:
         raise ValueError(f"unknown device {name!r}; accepted: {', '.join(DEVICES)}")
@@ -103,7 +123,7 @@ def episode_seed(run_seed: int, *path: int) -> int:
 def make_source(teacher: str) -> FeedbackSource:
     """The feedback source a teacher name stands for: a scripted preset or `replay:FILE`."""
     if teacher.startswith("replay:"):
-        from seqrank.labelling.replay import ReplaySource
+        from seqrank.feedback.replay import ReplaySource
 
         return ReplaySource.from_file(teacher.removeprefix("replay:"))
     if teacher == "human":
@@ -120,7 +140,7 @@ def make_agent(
     """SAC (reference or fast) for continuous control; DQN (D.1) for discrete tasks such as
     block:place."""
     if env.discrete:
-        from seqrank.dqn import DQN, DQNSettings, EpsilonSchedule
+        from seqrank.agents.dqn import DQN, DQNSettings, EpsilonSchedule
 
         dqn = DQNSettings(
             config.hidden,

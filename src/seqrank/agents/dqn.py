@@ -18,8 +18,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from seqrank.agents.sac import mlp
 from seqrank.buffer import Batch
-from seqrank.sac import mlp
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from seqrank.envs import SimEnv
+from seqrank.envs.base import SimEnv
 
 TABLE_WIDTH, TABLE_DEPTH = 0.70, 0.60  # x, y extent in metres
 BLOCK_HALF = 0.02

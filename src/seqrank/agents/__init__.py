@@ -1,0 +1,1 @@
+"""Agents: the contract the training loop relies on, SAC, DQN and MRN."""

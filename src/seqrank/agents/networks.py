@@ -1,0 +1,60 @@
+"""The networks agents are made of: an MLP and SAC's squashed-Gaussian actor."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+
+def mlp(inputs: int, hidden: int, layers: int, outputs: int) -> nn.Sequential:
+    """`layers` hidden ReLU layers; orthogonal weights, zero biases."""
+    sizes = [inputs] + [hidden] * layers + [outputs]
+    modules: list[nn.Module] = []
+    for a, b in itertools.pairwise(sizes):
+        modules += [nn.Linear(a, b), nn.ReLU()]
+    net = nn.Sequential(*modules[:-1])
+    orthogonal_init(net)
+    return net
+
+
+def orthogonal_init(net: nn.Module) -> None:
+    for module in net.modules():
+        if isinstance(module, nn.Linear):
+            nn.init.orthogonal_(module.weight)
+            nn.init.zeros_(module.bias)
+
+
+class Actor(nn.Module):
+    def __init__(self, obs_dim: int, act_dim: int, hidden: int, layers: int):
+        super().__init__()
+        self.net = mlp(obs_dim, hidden, layers, 2 * act_dim)
+        self.act_dim = act_dim
+
+    def forward(
+        self, obs: torch.Tensor, noise: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(sampled action, its log-probability (B, 1), deterministic action).
+
+        `noise` is the standard normal draw (B, act_dim): the caller decides where it comes
+        from, so two ways of running the same update can be fed the same numbers.
+        """
+        return squashed_gaussian(self.net(obs), noise)
+
+
+def squashed_gaussian(
+    head: torch.Tensor, noise: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """tanh(mean + std * noise), its log-probability and tanh(mean) from the actor's head."""
+    mean, raw_log_std = head.chunk(2, dim=-1)
+    log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(raw_log_std) + 1)
+    pre_tanh = mean + log_std.exp() * noise
+    log_prob = (-0.5 * noise.pow(2) - log_std - 0.5 * math.log(2 * math.pi)).sum(-1, True)
+    # log|det d tanh(x)/dx| = 2 (log 2 - x - softplus(-2x)), numerically stable
+    log_prob -= (2 * (math.log(2) - pre_tanh - F.softplus(-2 * pre_tanh))).sum(-1, True)
+    return torch.tanh(pre_tanh), log_prob, torch.tanh(mean)

@@ -1,0 +1,1 @@
+"""Reward learning: the preference-trained ensemble and the pre-training entropy reward."""

@@ -1,0 +1,1 @@
+"""Training: the PEBBLE / MRN loop as named phases, evaluation, run directories."""
