@@ -122,9 +122,20 @@ def test_dqn_explores_by_the_schedule_and_learns_a_one_step_bandit():
         agent.update(batch, generator)
     assert np.argmax(agent.act(np.zeros(3), True, generator)) == 2
     assert agent.epsilon == 0.5
-    picks = [np.argmax(agent.act(np.zeros(3), False, generator)) for _ in range(400)]
-    # epsilon 0.5 decaying to 0.5 * 0.98^3: greedy, or random and right a quarter of the time
-    assert 0.55 < np.mean(np.array(picks) == 2) < 0.72  # expected 1 - 0.75 * 0.485 = 0.64
+    # epsilon 0.5 decaying to 0.5 * 0.98^3 over 400 picks: greedy, or random and right a
+    # quarter of the time. Four runs of 400 picks from a fresh count, each its own generator.
+    right = 1 - 0.75 * np.array([agent.settings.epsilon.at(k) for k in range(400)])
+    freqs = []
+    for k in range(4):
+        agent.acted = 0
+        explore = torch.Generator().manual_seed(100 + k)
+        picks = [np.argmax(agent.act(np.zeros(3), False, explore)) for _ in range(400)]
+        freqs.append(np.mean(np.array(picks) == 2))
+    assert agent.acted == 400 and agent.epsilon == pytest.approx(0.5 * 0.98**4)
+    # expected 0.636, standard error of the mean of four runs 0.012; 20 training seeds x 4 runs
+    # measured means 0.622-0.667 (z -1.2 to 2.6), single runs 0.595-0.683: 4 standard errors
+    standard_error = np.sqrt(np.sum(right * (1 - right))) / 400 / 2
+    assert abs(np.mean(freqs) - right.mean()) < 4 * standard_error, freqs
 
 
 def test_presets_follow_table_4():
@@ -176,7 +187,7 @@ def test_every_scheme_and_teacher_trains_on_block_place(tmp_path, scheme, teache
     from test_training import run
 
     trainer = run(tmp_path / "run", block_config(scheme=scheme, teacher=teacher, steps=1200))
-    summary = trainer._summary()
+    summary = trainer.run_dir.read_summary()
     assert summary["asked"] == 40 and summary["steps"] == 1200
     if teacher == "skip":  # B-Pref's skip rule on all-negative returns: everything is skipped
         assert len(trainer.labels) == 0
@@ -199,14 +210,33 @@ def test_a_resumed_block_run_matches_an_uninterrupted_one(tmp_path):
 
 
 def test_dqn_from_oracle_preferences_reaches_the_goal_far_more_often_than_random(tmp_path):
-    """Small preset, 4 000 steps (about a minute on 2 cores). Random actions succeed in 0.35%
-    of episodes (7 of 2 000) and return -288 on average."""
+    """Small preset, 4 000 steps, seeds 0-2 on one torch thread (about 20 s a seed on 2
+    idle cores). Random actions succeed in 0.35% of episodes (7 of 2 000) and return -288 on
+    average. One seed is a coin toss (float rounding differs between CPUs and thread counts),
+    so the assertions are on means over three seeds; distributions in learning_thresholds.md.
+    """
     from test_training import run
 
-    overrides = {"steps": 4000, "max_feedback": 120, "device": "cpu"}
-    config = resolve_config("block:place", "small", overrides)
-    trainer = run(tmp_path / "run", config)
-    evals = [r for r in trainer.run_dir.read_metrics() if r["kind"] == "eval"]
-    learned = [r for r in evals if r["step"] > config.first_session_step]
-    assert max(r["eval_success_rate"] for r in learned) >= 30.0
-    assert evals[-1]["eval_return"] > -150.0
+    finals, bests = [], []
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # small networks: one thread is as fast, and never oversubscribed
+    try:
+        for seed in (0, 1, 2):
+            overrides = {"steps": 4000, "max_feedback": 120, "device": "cpu", "seed": seed}
+            config = resolve_config("block:place", "small", overrides)
+            trainer = run(tmp_path / f"run{seed}", config)
+            evals = [r for r in trainer.run_dir.read_metrics() if r["kind"] == "eval"]
+            learned = [r for r in evals if r["step"] > config.first_session_step]
+            finals.append(evals[-1]["eval_return"])
+            bests.append(max(r["eval_return"] for r in learned))
+    finally:
+        torch.set_num_threads(threads)
+    # 15 seeds (0-14), means over all 455 triples: final return min -109.2, median -71.0,
+    # max -45.2 (single seeds -124 to -42); best learned return min -68.1, median -57.2
+    # (single seeds -71 to -42). Random actions: -288.
+    assert np.mean(finals) > -150.0, finals
+    assert np.mean(bests) > -100.0, bests
+    # Success itself is not asserted: per seed it is bimodal at 4 000 steps (best success 0-100%,
+    # 2 of 15 seeds never above 5%), so no threshold over three seeds is both well inside the
+    # measured distribution (triples: max best success min 10%, pooled 3 of 180 episodes) and far
+    # above random play (0.35%, 0.6 of 180 episodes expected).

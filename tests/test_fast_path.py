@@ -1,4 +1,5 @@
-"""The fast SAC path against the reference: same update, same buffer rows, same runs."""
+"""SAC run the fast way against the reference way: same update, same buffer rows, same runs,
+and checkpoints that either path resumes."""
 
 from __future__ import annotations
 
@@ -8,30 +9,36 @@ import numpy as np
 import pytest
 import torch
 
-from seqrank.agents.fast_sac import FastSAC
+from seqrank.agents.critics import canonical_weights, load_canonical_weights
 from seqrank.agents.precision import matmul_precision
-from seqrank.agents.sac import SAC, SACSettings
+from seqrank.agents.sac import SAC, Execution, SACSettings
 from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.config import resolve_config
 from seqrank.reward.model import RewardModel
-from seqrank.training.loop import Trainer, resolve_precision
 from seqrank.training.runs import RunDir
+from seqrank.training.runtime import resolve_runtime
+from seqrank.training.trainer import Trainer
 from test_training import resume_after_kill, run, tiny_config, without_timing
 
 CPU = torch.device("cpu")
 SETTINGS = SACSettings(64, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
 OBS, ACT, ROWS = 7, 3, 48
-CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+CUDA = pytest.mark.gpu
 
 
-def twins(precision: str = "fp32", device: torch.device = CPU) -> tuple[SAC, FastSAC]:
+def fast_execution(precision: str = "fp32") -> Execution:
+    """The fast path's way to run the update, without CUDA graphs."""
+    return Execution(stacked_critics=True, fused_adam=True, precision=precision)
+
+
+def twins(precision: str = "fp32", device: torch.device = CPU) -> tuple[SAC, SAC]:
     """A reference agent and a fast one holding the same weights."""
     torch.manual_seed(0)
     reference = SAC(OBS, ACT, SETTINGS, device)
-    fast = FastSAC(OBS, ACT, SETTINGS, device, precision, graphs=False)
+    fast = SAC(OBS, ACT, SETTINGS, device, fast_execution(precision))
     fast.actor.load_state_dict(reference.actor.state_dict())
-    fast.critic.copy_from(reference.critic)
-    fast.critic_target.copy_from(reference.critic_target)
+    load_canonical_weights(fast.critic, canonical_weights(reference.critic))
+    load_canonical_weights(fast.critic_target, canonical_weights(reference.critic_target))
     return reference, fast
 
 
@@ -47,18 +54,16 @@ def all_changed(before: object, after: object) -> bool:
     return all(not torch.equal(a, b) for a, b in zip(before, after, strict=True))  # type: ignore[call-overload]
 
 
-def stacked(reference: SAC, which: str) -> list[torch.Tensor]:
+def stacked(reference: SAC, fast: SAC, which: str) -> list[torch.Tensor]:
     """The reference's twin critic (or target) in the fast layout."""
-    holder = FastSAC(OBS, ACT, SETTINGS, CPU, graphs=False)
-    holder.critic.copy_from(copy.deepcopy(getattr(reference, which)).cpu())
-    return [p.detach() for p in holder.critic.parameters()]
+    return fast.critic.from_canonical(canonical_weights(getattr(reference, which)))
 
 
-def assert_same_agents(reference: SAC, fast: FastSAC, atol: float) -> None:
+def assert_same_agents(reference: SAC, fast: SAC, atol: float) -> None:
     pairs = [
         (list(reference.actor.parameters()), list(fast.actor.parameters())),
-        (stacked(reference, "critic"), list(fast.critic.parameters())),
-        (stacked(reference, "critic_target"), list(fast.critic_target.parameters())),
+        (stacked(reference, fast, "critic"), list(fast.critic.parameters())),
+        (stacked(reference, fast, "critic_target"), list(fast.critic_target.parameters())),
         ([reference.log_alpha], [fast.log_alpha]),
     ]
     for expected, actual in pairs:
@@ -83,9 +88,9 @@ def test_fp32_updates_match_the_reference_from_the_same_state_and_batch():
         batch = random_batch(generator)
         next_noise = torch.randn((ROWS, ACT), generator=generator)
         noise = torch.randn((ROWS, ACT), generator=generator)
-        expected = reference.update_with_noise(batch, next_noise, noise)
+        reference.update_with_noise(batch, next_noise, noise)
         fast.update_with_noise(batch, next_noise, noise)
-        actual = fast.last_metrics
+        expected, actual = reference.last_metrics, fast.last_metrics
         for name, value in expected.items():
             assert actual[name] == pytest.approx(value, rel=1e-5, abs=1e-7), name
     assert fast.updates == reference.updates == 6
@@ -111,7 +116,8 @@ def test_reduced_precision_stays_within_its_documented_tolerance(precision, devi
     next_noise = torch.randn((ROWS, ACT), generator=generator).to(device)
     noise = torch.randn((ROWS, ACT), generator=generator).to(device)
     with matmul_precision("fp32"):
-        expected = reference.update_with_noise(batch, next_noise, noise)
+        reference.update_with_noise(batch, next_noise, noise)
+    expected = reference.last_metrics
     fast.update_with_noise(batch, next_noise, noise)
     for name, value in fast.last_metrics.items():
         assert value == pytest.approx(expected[name], rel=1e-2), name
@@ -141,26 +147,59 @@ def test_critic_reset_happens_in_place():
 
 def test_the_capture_warm_up_is_undone_completely():
     """Before a CUDA graph is captured, warm-up updates run and are then rolled back: the
-    snapshot must hold every tensor an update changes (checked here on the CPU)."""
+    tensors the graph wrapper restores must be every tensor an update changes (checked
+    here on the CPU)."""
     _, fast = twins()
     generator = torch.Generator().manual_seed(1)
     fast.update(random_batch(generator), generator)  # the optimisers' state exists
-    saved = fast._snapshot()
-    before = fast.state_dict()
-    before = {k: copy.deepcopy(v) for k, v in before.items()}
+    saved = [(t, t.detach().clone()) for t in fast._touched()]
+    before = copy.deepcopy(fast.state_dict())
     for _ in range(4):  # two of them also move the target critics
         fast.update(random_batch(generator), generator)
-    fast._restore(saved)
+    with torch.no_grad():
+        for tensor, copied in saved:
+            tensor.copy_(copied)
     fast.updates = before["updates"]
-    after = fast.state_dict()
-    for part in ("actor", "critic", "critic_target"):
-        for name, tensor in before[part].items():
-            assert torch.equal(after[part][name], tensor), (part, name)
-    assert torch.equal(after["log_alpha"], before["log_alpha"])
-    for part in ("actor_opt", "critic_opt", "alpha_opt"):
-        for index, state in before[part]["state"].items():
-            for key, value in state.items():
-                assert torch.equal(after[part]["state"][index][key], value), (part, key)
+    assert_same_state(fast.state_dict(), before)
+
+
+def assert_same_state(actual: object, expected: object, where: str = "") -> None:
+    """Nested checkpoint states hold equal tensors and values."""
+    if isinstance(expected, dict):
+        assert isinstance(actual, dict) and actual.keys() == expected.keys(), where
+        for key, value in expected.items():
+            assert_same_state(actual[key], value, f"{where}/{key}")
+    elif isinstance(expected, torch.Tensor):
+        assert isinstance(actual, torch.Tensor) and torch.equal(actual, expected), where
+    else:
+        assert actual == expected, where
+
+
+def test_a_checkpoint_moves_between_the_reference_and_fast_layouts():
+    """Weights, temperature and Adam state saved by one path load into the other and save
+    back unchanged; the loaded agents compute the same Q-values."""
+    reference, fast = twins()
+    generator = torch.Generator().manual_seed(3)
+    for _ in range(3):
+        fast.update(random_batch(generator), generator)
+    saved = copy.deepcopy(fast.state_dict())
+    reference.load_state_dict(saved)
+    assert_same_state(reference.state_dict(), saved)
+    back = SAC(OBS, ACT, SETTINGS, CPU, fast_execution())
+    back.load_state_dict(reference.state_dict())
+    assert_same_state(back.state_dict(), saved)
+    batch = random_batch(generator)
+    for a, b in zip(
+        reference.critic(batch.obs, batch.action), fast.critic(batch.obs, batch.action), strict=True
+    ):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-6)
+
+
+def test_an_old_path_specific_checkpoint_is_refused_by_name():
+    reference, _ = twins()
+    old = {k: v for k, v in reference.state_dict().items() if k != "layout"}
+    with pytest.raises(ValueError, match="saved by an older seqrank"):
+        reference.load_state_dict(old)
 
 
 def test_staged_adds_write_the_rows_and_learned_rewards_of_plain_adds():
@@ -173,7 +212,7 @@ def test_staged_adds_write_the_rows_and_learned_rewards_of_plain_adds():
         obs, action, next_obs = np.full(2, i, np.float32), np.full(1, -i, np.float32), np.ones(2)
         learned = float(reward_fn(torch.tensor(obs)[None], torch.tensor(action)[None]))
         plain.add(obs, action, 0.5 * i, learned, next_obs, i == 4)
-        staged.add_staged(obs, action, 0.5 * i, next_obs, i == 4, reward_fn)
+        staged.add_transition(obs, action, 0.5 * i, next_obs, i == 4, reward_fn)
     assert torch.equal(staged.table, plain.table)
     assert staged.index == plain.index == 3 and len(staged) == 6
     assert float(staged.size_t) == 6
@@ -212,7 +251,7 @@ def fast_run(tmp_path_factory):
 
 def test_a_fast_run_goes_through_every_phase(fast_run):
     rows = fast_run.run_dir.read_metrics()
-    assert isinstance(fast_run.agent, FastSAC) and fast_run.precision == "fp32"
+    assert fast_run.agent.execution.stacked_critics and fast_run.runtime.precision == "fp32"
     assert [r["step"] for r in rows if r["kind"] == "feedback"] == [1200, 1700, 2200]
     assert [r["step"] for r in rows if r["kind"] == "eval"] == [1600, 3200]
     assert fast_run.agent.updates >= 3200 - 300
@@ -256,14 +295,17 @@ def test_fast_path_is_refused_for_the_dqn_task():
         resolve_config("block:place", "small", dict(path="fast"))
 
 
-def test_precision_resolution():
+def test_path_and_precision_resolution():
     cuda = torch.device("cuda")
-    assert resolve_precision("auto", cuda, fast=True) == "tf32"
-    assert resolve_precision("auto", cuda, fast=False) == "fp32"
-    assert resolve_precision("auto", CPU, fast=True) == "fp32"
-    assert resolve_precision("bf16", CPU, fast=True) == "bf16"
+    assert resolve_runtime(cuda, "auto", "auto", discrete=False).precision == "tf32"
+    assert resolve_runtime(cuda, "auto", "auto", discrete=False).fast
+    assert not resolve_runtime(cuda, "auto", "auto", discrete=True).fast  # DQN
+    assert resolve_runtime(cuda, "reference", "auto", discrete=False).precision == "fp32"
+    assert resolve_runtime(CPU, "fast", "auto", discrete=False).precision == "fp32"
+    assert resolve_runtime(CPU, "fast", "bf16", discrete=False).precision == "bf16"
+    assert not resolve_runtime(CPU, "auto", "auto", discrete=False).fast
     with pytest.raises(ValueError, match="the reference path is strict fp32"):
-        resolve_precision("tf32", CPU, fast=False)  # path auto on a CPU is the reference
+        resolve_runtime(CPU, "auto", "tf32", discrete=False)  # auto on a CPU: reference
 
 
 @CUDA
@@ -271,7 +313,7 @@ def test_graph_updates_on_cuda_train_the_critic():
     """The captured update restores what its warm-up changed, then trains the critic."""
     device = torch.device("cuda")
     torch.manual_seed(0)
-    agent = FastSAC(OBS, ACT, SETTINGS, device, "fp32", graphs=True)
+    agent = SAC(OBS, ACT, SETTINGS, device, Execution.fast(device, "fp32"))
     buffer = ReplayBuffer(1000, OBS, ACT, device)
     generator = torch.Generator().manual_seed(0)
     for _ in range(500):  # reward = first observation feature, learnable by the critic
@@ -279,12 +321,12 @@ def test_graph_updates_on_cuda_train_the_critic():
         buffer.add(obs, np.zeros(ACT, np.float32), 0.0, float(obs[0]), obs, False)
     agent.update(buffer.sample(ROWS, generator), generator)  # the optimisers' state exists
     before = [p.detach().clone() for p in agent.actor.parameters()]
-    agent.update_from_buffer(buffer, ROWS, generator)  # captures, then replays once
+    agent.update_from(buffer, ROWS, generator)  # captures, then replays once
     assert agent.capture_seconds > 0 and agent.updates == 2
     assert all_changed(before, agent.actor.parameters())
     first = agent.last_metrics["critic_loss"]
     for _ in range(300):
-        agent.update_from_buffer(buffer, ROWS, generator)
+        agent.update_from(buffer, ROWS, generator)
     assert agent.updates == 302
     assert agent.last_metrics["critic_loss"] < first
 
@@ -294,7 +336,7 @@ def test_background_evaluation_scores_the_policy_of_its_step(fast_run):
     the same seeds gives the same returns."""
     from seqrank.envs import make_env
     from seqrank.training.evaluation import evaluate_policy
-    from seqrank.training.loop import episode_seed
+    from seqrank.training.state import episode_seed
 
     config, c = fast_run.config, fast_run.counters
     last = [r for r in fast_run.run_dir.read_metrics() if r["kind"] == "eval"][-1]
@@ -303,28 +345,21 @@ def test_background_evaluation_scores_the_policy_of_its_step(fast_run):
     env = make_env(config.task, config.seed)
     score = evaluate_policy(fast_run.agent, env, seeds, torch.Generator())
     assert last["eval_return"] == pytest.approx(float(np.mean(score.returns)), rel=1e-4)
-    assert fast_run._evaluator is None  # the worker process was shut down
+    assert fast_run.evaluations._worker is None  # the worker process was shut down
 
 
-def test_a_run_on_path_auto_resumes_on_the_path_that_wrote_its_checkpoint(fast_run, tmp_path):
-    """A run started with path auto on a GPU (fast) and resumed on a CPU (where auto means
-    reference) continues on the fast path; a run set to the other path is refused."""
-    import json
-
-    from seqrank.training.loop import open_trainer
-
+def test_a_fast_run_resumes_on_the_reference_path(fast_run, tmp_path):
+    """Checkpoints do not depend on the path: a run killed on the fast path continues on
+    the reference path from exactly the saved agent, and finishes every phase."""
     with pytest.raises(KeyboardInterrupt):
         run(tmp_path / "gpu-run", tiny_config(path="fast"), stop_at=2500)
     directory = RunDir.open(tmp_path / "gpu-run")
-    saved = json.loads(directory.config_path.read_text())
-    directory.config_path.write_text(json.dumps({**saved, "path": "auto"}))
-    with pytest.raises(ValueError, match="written by the fast path"):
-        Trainer(tiny_config(path="reference"), directory).load_checkpoint(
-            directory.load_checkpoint()
-        )
-    trainer, state = open_trainer(Trainer, directory.read_config(), directory)
-    assert state is not None and trainer.fast
+    state = directory.load_checkpoint()
+    trainer = Trainer(tiny_config(path="reference"), directory)
+    trainer.load_checkpoint(state)
+    assert not trainer.fast
+    assert_same_state(trainer.agent.state_dict(), state["agent"])
     trainer.train()
-    assert without_timing(directory.read_metrics()) == without_timing(
-        fast_run.run_dir.read_metrics()
-    )
+    rows = directory.read_metrics()
+    assert [r["step"] for r in rows if r["kind"] == "eval"] == [1600, 3200]
+    assert [r["step"] for r in rows if r["kind"] == "feedback"] == [1200, 1700, 2200]

@@ -18,7 +18,7 @@ from seqrank.labelling.db import LabelDB
 from seqrank.labelling.human import HumanSource
 from seqrank.labelling.jsonl import export_file, import_file
 from seqrank.labelling.server import create_app
-from seqrank.training.loop import Trainer
+from seqrank.training.trainer import Trainer
 from seqrank.training.runs import RunDir
 from seqrank.types import Answer, AnsweredQuestion, Question
 from test_labelling_api import Page
@@ -221,8 +221,8 @@ def test_no_wait_keeps_training_while_a_session_is_answered(tmp_path):
             release.set()
             # hold training here until the person has answered, so that the session is sure
             # to be counted before the run ends (however slow the machine)
-            if trainer._pending is not None:
-                trainer._pending[1].result(timeout=120)
+            if trainer.sessions.pending is not None:
+                trainer.sessions.pending[1].result(timeout=120)
 
     trainer.progress = watch
     summary = train_answered(trainer, hub, answerer)

@@ -52,17 +52,30 @@ def segment_pairs(count: int, seed: int = 0):
 
 
 def test_reward_model_learns_preferences_and_stops_early():
-    torch.manual_seed(0)
-    model = RewardModel(3, 3, 32, 2, 3e-3, CPU)
-    segments, first, second, labels = segment_pairs(200)
-    result = model.train(
-        segments, first, second, labels, 200, 64, 0.97, torch.Generator().manual_seed(1)
-    )
-    assert result.accuracy > 0.97 and result.epochs < 200
-    test_segments, tf, ts, tl = segment_pairs(200, seed=5)
-    pred = model.member_returns(test_segments.numpy()).mean(0)
-    accuracy = ((pred[tf.numpy()] > pred[ts.numpy()]) == (tl.numpy() > 0.5)).mean()
-    assert accuracy > 0.85
+    """Three seeds (initialisation, data, shuffles); distributions in learning_thresholds.md."""
+    epochs, accuracies = [], []
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # tiny minibatches: one thread is as fast, and never oversubscribed
+    try:
+        for seed in (0, 1, 2):
+            torch.manual_seed(seed)
+            model = RewardModel(3, 3, 32, 2, 3e-3, CPU)
+            segments, first, second, labels = segment_pairs(200, seed=100 + seed)
+            generator = torch.Generator().manual_seed(1000 + seed)
+            result = model.train(segments, first, second, labels, 200, 64, 0.95, generator)
+            assert result.accuracy > 0.95 or result.epochs == 200  # the stopping rule
+            epochs.append(result.epochs)
+            test_segments, tf, ts, tl = segment_pairs(200, seed=200 + seed)
+            pred = model.member_returns(test_segments.numpy()).mean(0)
+            hits = (pred[tf.numpy()] > pred[ts.numpy()]) == (tl.numpy() > 0.5)
+            accuracies.append(hits.mean())
+    finally:
+        torch.set_num_threads(threads)
+    # seeds 0-19: stopped after 4-126 epochs (median 46) of 200; held-out accuracy 0.89-0.955
+    # (median 0.905), mean of three 0.893-0.95 over all 1 140 triples; chance is 0.5. (Stopping
+    # at 0.97 instead missed in 1 of 20 seeds, and single-seed accuracy went down to 0.835.)
+    assert sum(e < 200 for e in epochs) >= 2, epochs
+    assert np.mean(accuracies) > 0.85, accuracies
 
 
 def test_equal_labels_pull_returns_together_on_the_same_loss_path():

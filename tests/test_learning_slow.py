@@ -7,7 +7,8 @@ import pytest
 
 from seqrank.config import resolve_config
 from seqrank.envs import make_env
-from seqrank.training.loop import Trainer, episode_seed
+from seqrank.training.trainer import Trainer
+from seqrank.training.state import episode_seed
 from seqrank.training.runs import RunDir
 
 

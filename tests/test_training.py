@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from seqrank.config import resolve_config
-from seqrank.training.loop import Trainer
+from seqrank.training.trainer import Trainer
 from seqrank.training.runs import RunDir
 
 TIMING = {"steps_per_second", "wall_seconds"}

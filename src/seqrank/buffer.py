@@ -99,7 +99,7 @@ class ReplayBuffer:
         row = self.row(obs, action, true_reward, learned_reward, next_obs, terminated)
         self.write_row(torch.from_numpy(row))
 
-    def add_staged(
+    def add_transition(
         self,
         obs: np.ndarray,
         action: np.ndarray,
@@ -108,26 +108,35 @@ class ReplayBuffer:
         terminated: bool,
         reward_fn: RewardFn | None,
     ) -> None:
-        """The fast path's add: one asynchronous copy from pinned memory, and the learned
-        reward computed where the table lives (no host round trip)."""
-        cuda = self.storage.type == "cuda"
+        """A transition as the loop stores it, its learned reward computed by `reward_fn`
+        on the stored row (none before the first reward model). On CUDA the row goes
+        through a ring of pinned host rows with one asynchronous copy, and the learned
+        reward is computed on the device (no host round trip)."""
+        i = self.index
+        row = self.row(obs, action, true_reward, 0.0, next_obs, terminated)
+        if self.storage.type == "cuda":
+            self._write_staged(row)
+        else:
+            self.write_row(torch.from_numpy(row))
+        if reward_fn is not None:
+            with torch.no_grad():
+                obs_t, action_t = self.obs[i : i + 1], self.action[i : i + 1]
+                learned = reward_fn(obs_t.to(self.device), action_t.to(self.device))
+                self.reward[i : i + 1] = learned.to(self.storage)
+
+    def _write_staged(self, row: np.ndarray) -> None:
         if self._staging is None:
-            self._staging = torch.zeros((STAGING_ROWS, self.width), pin_memory=cuda)
+            self._staging = torch.zeros((STAGING_ROWS, self.width), pin_memory=True)
         k = self._staged % STAGING_ROWS
         self._staged += 1
         event = self._staging_events.get(k)
         if event is not None:  # a pinned row is rewritten only once its copy is done
             event.synchronize()
         slot = self._staging[k]
-        slot.numpy()[:] = self.row(obs, action, true_reward, 0.0, next_obs, terminated)
-        i = self.index
+        slot.numpy()[:] = row
         self.write_row(slot)
-        if cuda:
-            self._staging_events[k] = torch.cuda.Event()
-            self._staging_events[k].record()
-        if reward_fn is not None:
-            with torch.no_grad():
-                self.reward[i : i + 1] = reward_fn(self.obs[i : i + 1], self.action[i : i + 1])
+        self._staging_events[k] = torch.cuda.Event()
+        self._staging_events[k].record()
 
     def write_row(self, row: torch.Tensor) -> None:
         self.table[self.index].copy_(row, non_blocking=True)

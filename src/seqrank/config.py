@@ -11,30 +11,50 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from seqrank.choices import (
+    Backbone,
+    Device,
+    Precision,
+    Scale,
+    Selection,
+    TrainingPath,
+    check_path,
+    parse_choice,
+)
 from seqrank.envs import canonical_task
-from seqrank.feedback.schemes import SCHEMES
-from seqrank.feedback.teachers import TEACHER_PRESETS
+from seqrank.feedback.schemes import SchemeName
+from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 
-BACKBONES = ("pebble", "mrn")
-SELECTIONS = ("uniform", "disagreement", "entropy")
-SCALES = ("paper", "small")
-DEVICES = ("auto", "cpu", "cuda")
-PATHS = ("auto", "reference", "fast")  # auto: fast on CUDA, reference elsewhere
-PRECISIONS = ("auto", "fp32", "tf32", "bf16")  # auto: tf32 for the fast path on CUDA
+BACKBONES = tuple(Backbone)
+SELECTIONS = tuple(Selection)
+SCALES = tuple(Scale)
+DEVICES = tuple(Device)
+PATHS = tuple(TrainingPath)
+PRECISIONS = tuple(Precision)
+# the choices of a run, checked and turned into their types when a config is made
+CHOICES: dict[str, type[Any]] = {
+    "scheme": SchemeName,
+    "backbone": Backbone,
+    "selection": Selection,
+    "scale": Scale,
+    "device": Device,
+    "path": TrainingPath,
+    "precision": Precision,
+}
 
 
 @dataclass(frozen=True)
 class TrainConfig:
     task: str = "walker_walk"
-    scheme: str = "sequential"
-    teacher: str = "oracle"
-    backbone: str = "pebble"
+    scheme: SchemeName = SchemeName.SEQUENTIAL
+    teacher: str = "oracle"  # a `parse_teacher` value: preset[,knob=value...], replay:FILE, human
+    backbone: Backbone = Backbone.PEBBLE
     seed: int = 0
     steps: int = 500_000
-    device: str = "auto"
-    scale: str = "paper"
-    path: str = "auto"
-    precision: str = "auto"
+    device: Device = Device.AUTO
+    scale: Scale = Scale.PAPER
+    path: TrainingPath = TrainingPath.AUTO
+    precision: Precision = Precision.AUTO
     # SAC (SPEC section 2)
     hidden: int = 1024
     layers: int = 2
@@ -56,7 +76,7 @@ class TrainConfig:
     reward_batch: int = 40
     feedback_frequency: int = 20_000
     segment_length: int = 50
-    selection: str = "uniform"
+    selection: Selection = Selection.UNIFORM
     oversample: int = 10
     episodes_kept: int = 100
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
@@ -76,6 +96,15 @@ class TrainConfig:
     eval_episodes: int = 10
     checkpoint_every: int = 10_000
     heldout_pairs: int = 500
+
+    def __post_init__(self) -> None:
+        for name, kind in CHOICES.items():
+            object.__setattr__(self, name, parse_choice(kind, getattr(self, name), name))
+        parse_teacher(self.teacher)
+
+    @property
+    def teacher_spec(self) -> TeacherSpec:
+        return parse_teacher(self.teacher)
 
     @property
     def sessions(self) -> int:
@@ -203,42 +232,13 @@ def resolve_config(task: str, scale: str, overrides: dict[str, Any]) -> TrainCon
 def validate(config: TrainConfig) -> None:
     """Raise ValueError naming the bad value and what is accepted."""
     canonical_task(config.task)
-    for name, accepted in (
-        ("scheme", tuple(SCHEMES)),
-        ("backbone", BACKBONES),
-        ("selection", SELECTIONS),
-        ("scale", SCALES),
-        ("device", DEVICES),
-        ("path", PATHS),
-        ("precision", PRECISIONS),
-    ):
-        value = getattr(config, name)
-        if value not in accepted:
-            raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
-    teacher = config.teacher
-    if teacher not in TEACHER_PRESETS and teacher != "human" and not teacher.startswith("replay:"):
-        raise ValueError(
-            f"unknown teacher {teacher!r}; accepted: {', '.join(TEACHER_PRESETS)}, human "
-            "(the labelling page) or replay:FILE (labels exported as JSONL)"
-        )
     if canonical_task(config.task)[0] == "block" and config.backbone != "pebble":
         raise ValueError(
-            f"backbone {config.backbone!r} needs SAC's actor; block:place learns with DQN "
+            f"backbone '{config.backbone}' needs SAC's actor; block:place learns with DQN "
             "and supports backbone pebble"
         )
-    if config.path == "reference" and config.precision not in ("auto", "fp32"):
-        raise ValueError(
-            f"precision {config.precision!r} needs the fast path: the reference path is "
-            "strict fp32 (use --path fast, or --precision fp32)"
-        )
-    if canonical_task(config.task)[0] == "block" and config.path == "fast":
-        raise ValueError(
-            "path 'fast' is SAC's fast update; block:place learns with DQN: use --path "
-            "reference or auto"
-        )
-    if teacher == "replay:":
-        raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
-    if teacher == "human" and not config.record_states:
+    check_path(config.path, config.precision, discrete=canonical_task(config.task)[0] == "block")
+    if config.teacher_spec.kind == "human" and not config.record_states:
         raise ValueError(
             "teacher 'human' answers on the labelling page: use `seqrank label online` "
             "(it also sets record_states 1, which the clips need)"

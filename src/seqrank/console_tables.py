@@ -43,78 +43,14 @@ def _table(title: str, headers: Sequence[str]) -> Table:
 def print_theory(
     out: Console, rows: Sequence[TheoryRow], findings: Sequence[str], args: argparse.Namespace
 ) -> None:
-    seq = _table(
-        "Sequential: expected labelled pairs of a session on M segments (M-1 questions, "
-        "perfect teacher)",
-        (
-            "M",
-            "paper a_M",
-            "paper linear",
-            "exact",
-            "enumerated",
-            f"simulated (n={args.sessions})",
-            "augmented",
-            "paper augm.",
-        ),
-    )
-    for r in rows:
-        seq.add_row(
-            str(r.m),
-            _num(r.sequential_paper_recurrence),
-            _num(r.sequential_paper_linear),
-            _num(r.sequential_exact),
-            _num(r.sequential_enumerated),
-            _pm(r.sequential_simulated, r.sequential_simulated_se, 3),
-            _num(r.sequential_augmented_exact),
-            _num(r.sequential_augmented_paper),
-        )
-    out.print(seq)
+    out.print(_sequential_table(rows, args.sessions))
     out.print(
         "paper a_M: Lemma 1 recurrence; paper linear: 1.392(M-1.324) (Theorem 1); exact: "
         "sum_{d=1}^{M-1} (M-d) 2/(d+1)! -> 2(e-2)M - 2 = 1.4366(M - 1.3922)\n"
     )
-    root = _table(
-        "Root: expected labelled pairs",
-        ("M", "paper b_M", "enumerated", f"simulated (n={args.sessions})", "augmented"),
-    )
-    for r in rows:
-        root.add_row(
-            str(r.m),
-            _num(r.root_paper),
-            _num(r.root_enumerated),
-            _pm(r.root_simulated, r.root_simulated_se, 3),
-            _num(r.root_augmented),
-        )
-    out.print(root)
+    out.print(_root_table(rows, args.sessions))
     out.print("paper b_M: 2(M - H_M) (Theorem 2)\n")
-    degrees = _table(
-        "Dependency graph of labelled pairs (pairs sharing a segment are dependent): "
-        f"expected max and mean degree; bounds hold with probability {1 - args.delta:g}",
-        (
-            "M",
-            "seq max (enum)",
-            "seq max (sim)",
-            "seq mean",
-            "Lemma 3 bound",
-            "root max (enum)",
-            "root max (sim)",
-            "root mean",
-            "Lemma 4 bound",
-        ),
-    )
-    for r in rows:
-        degrees.add_row(
-            str(r.m),
-            _num(r.sequential_max_degree_enumerated, 2),
-            _num(r.sequential_max_degree_simulated, 2),
-            _num(r.sequential_mean_degree_simulated, 2),
-            _num(r.sequential_degree_bound, 2),
-            _num(r.root_max_degree_enumerated, 2),
-            _num(r.root_max_degree_simulated, 2),
-            _num(r.root_mean_degree_simulated, 2),
-            _num(r.root_degree_bound, 2),
-        )
-    out.print(degrees)
+    out.print(_degree_table(rows, args.delta))
     fig = PAPER_FIGURE13
     seq_fig, root_fig = fig["sequential"], fig["root"]
     out.print(
@@ -129,6 +65,82 @@ def print_theory(
             out.print(f"  - {line}", highlight=False)
     else:
         out.print("Every formula agrees with enumeration and simulation.")
+
+
+def _sequential_table(rows: Sequence[TheoryRow], sessions: int) -> Table:
+    table = _table(
+        "Sequential: expected labelled pairs of a session on M segments (M-1 questions, "
+        "perfect teacher)",
+        (
+            "M",
+            "paper a_M",
+            "paper linear",
+            "exact",
+            "enumerated",
+            f"simulated (n={sessions})",
+            "augmented",
+            "paper augm.",
+        ),
+    )
+    for r in rows:
+        table.add_row(
+            str(r.m),
+            _num(r.sequential_paper_recurrence),
+            _num(r.sequential_paper_linear),
+            _num(r.sequential_exact),
+            _num(r.sequential_enumerated),
+            _pm(r.sequential_simulated, r.sequential_simulated_se, 3),
+            _num(r.sequential_augmented_exact),
+            _num(r.sequential_augmented_paper),
+        )
+    return table
+
+
+def _root_table(rows: Sequence[TheoryRow], sessions: int) -> Table:
+    table = _table(
+        "Root: expected labelled pairs",
+        ("M", "paper b_M", "enumerated", f"simulated (n={sessions})", "augmented"),
+    )
+    for r in rows:
+        table.add_row(
+            str(r.m),
+            _num(r.root_paper),
+            _num(r.root_enumerated),
+            _pm(r.root_simulated, r.root_simulated_se, 3),
+            _num(r.root_augmented),
+        )
+    return table
+
+
+def _degree_table(rows: Sequence[TheoryRow], delta: float) -> Table:
+    table = _table(
+        "Dependency graph of labelled pairs (pairs sharing a segment are dependent): "
+        f"expected max and mean degree; bounds hold with probability {1 - delta:g}",
+        (
+            "M",
+            "seq max (enum)",
+            "seq max (sim)",
+            "seq mean",
+            "Lemma 3 bound",
+            "root max (enum)",
+            "root max (sim)",
+            "root mean",
+            "Lemma 4 bound",
+        ),
+    )
+    for r in rows:
+        table.add_row(
+            str(r.m),
+            _num(r.sequential_max_degree_enumerated, 2),
+            _num(r.sequential_max_degree_simulated, 2),
+            _num(r.sequential_mean_degree_simulated, 2),
+            _num(r.sequential_degree_bound, 2),
+            _num(r.root_max_degree_enumerated, 2),
+            _num(r.root_max_degree_simulated, 2),
+            _num(r.root_mean_degree_simulated, 2),
+            _num(r.root_degree_bound, 2),
+        )
+    return table
 
 
 def print_simulation(out: Console, results: Sequence[CellResult]) -> None:

@@ -5,8 +5,7 @@ vectors (what the replay buffer and the reward model see). Exploration follows D
 epsilon 1.0 for the first `seed_steps` steps (the trainer acts at random then), afterwards
 0.5, multiplied by 0.98 every 100 steps, never below 0.1.
 
-It offers the trainer the same calls as SAC (`act`, `update`, `reset_critic`,
-`last_metrics`, `state_dict`), so PEBBLE's loop runs unchanged.
+It satisfies the `Agent` protocol, so PEBBLE's loop runs it unchanged.
 """
 
 from __future__ import annotations
@@ -18,8 +17,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from seqrank.agents.sac import mlp
-from seqrank.buffer import Batch
+from seqrank.agents.networks import mlp
+from seqrank.agents.sac import descend, soft_update
+from seqrank.buffer import Batch, ReplayBuffer
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,12 @@ class DQN:
         obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device).unsqueeze(0)
         return _one_hot(int(self.q(obs_t).argmax(dim=-1)), self.actions)
 
-    def update(self, batch: Batch, generator: torch.Generator) -> dict[str, float]:
+    def update_from(
+        self, replay: ReplayBuffer, batch_size: int, generator: torch.Generator
+    ) -> None:
+        self.update(replay.sample(batch_size, generator), generator)
+
+    def update(self, batch: Batch, generator: torch.Generator) -> None:
         action = batch.action.argmax(dim=-1, keepdim=True)
         q = self.q(batch.obs).gather(1, action)
         with torch.no_grad():  # double DQN: the online net picks, the target net values
@@ -89,20 +94,15 @@ class DQN:
             next_value = self.q_target(batch.next_obs).gather(1, best)
             target = batch.reward + self.settings.discount * batch.not_done * next_value
         loss = F.smooth_l1_loss(q, target)
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        self.optimizer.step()
+        descend(self.optimizer, loss)
         self.updates += 1
         if self.updates % self.settings.target_update_every == 0:
-            with torch.no_grad():
-                for p, tp in zip(self.q.parameters(), self.q_target.parameters(), strict=True):
-                    tp.lerp_(p, self.settings.tau)
+            soft_update(self.q_target.parameters(), self.q.parameters(), self.settings.tau)
         self.last_metrics = {
             "q_loss": float(loss.detach()),
             "q_mean": float(q.detach().mean()),
             "epsilon": self.epsilon,
         }
-        return self.last_metrics
 
     def eval_metrics(self) -> dict[str, float]:
         return {"epsilon": self.epsilon}

@@ -8,14 +8,15 @@ whose gradient flows back, through that step, into the reward parameters.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
 from torch.func import functional_call
 
-from seqrank.agents.sac import SAC
-from seqrank.buffer import Batch
+from seqrank.agents.sac import SAC, critic_loss
+from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.reward.model import RewardModel
 
 
@@ -43,8 +44,7 @@ def outer_loss(
         batch, generator
     )
     params: dict[str, torch.Tensor] = dict(agent.critic.named_parameters())
-    q1, q2 = functional_call(agent.critic, params, (batch.obs, batch.action))
-    inner = F.mse_loss(q1, target) + F.mse_loss(q2, target)
+    inner = critic_loss(functional_call(agent.critic, params, (batch.obs, batch.action)), target)
     grads = torch.autograd.grad(inner, list(params.values()), create_graph=True)
     lr = agent.settings.critic_lr
     stepped = {name: p - lr * g for (name, p), g in zip(params.items(), grads, strict=True)}
@@ -72,3 +72,49 @@ def meta_reward_step(
     reward_model.optimizer.step()
     agent.critic.zero_grad(set_to_none=True)
     return float(loss.detach())
+
+
+@dataclass(frozen=True)
+class MetaSettings:
+    batch: int
+    every: int  # meta_update_frequency: steps between meta reward steps
+    loss_weight: float
+
+
+class MetaRewardUpdate:
+    """MRN's agent update: every `every` steps while feedback is still being asked for,
+    a meta reward step, then the agent's update on the batch under the new reward and a
+    relabelled buffer; otherwise the agent's own update."""
+
+    def __init__(
+        self,
+        agent: SAC,
+        reward_model: RewardModel,
+        replay: ReplayBuffer,
+        settings: MetaSettings,
+        recent_pairs: Callable[[], PairBatch | None],
+        relabel: Callable[[], None],
+        generator: torch.Generator,
+        record: Callable[[str, float], None],
+    ):
+        self.agent, self.reward_model, self.replay = agent, reward_model, replay
+        self.settings, self.recent_pairs, self.relabel = settings, recent_pairs, relabel
+        self.generator, self.record = generator, record
+
+    def __call__(self, step: int, feedback_open: bool) -> None:
+        due = feedback_open and step % self.settings.every == 0
+        pairs = self.recent_pairs() if due else None
+        if pairs is None:
+            self.agent.update_from(self.replay, self.settings.batch, self.generator)
+            return
+        batch = self.replay.sample(self.settings.batch, self.generator)
+        loss = meta_reward_step(
+            self.agent, self.reward_model, batch, pairs, self.generator, self.settings.loss_weight
+        )
+        self.record("meta_outer_loss", loss)
+        with torch.no_grad():
+            reward = self.reward_model.reward(batch.obs, batch.action)
+        self.agent.update(
+            Batch(batch.obs, batch.action, reward, batch.next_obs, batch.not_done), self.generator
+        )
+        self.relabel()

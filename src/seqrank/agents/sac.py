@@ -1,87 +1,28 @@
-"""Soft actor-critic as SPEC section 2 states it (PEBBLE's settings)."""
+"""Soft actor-critic as SPEC section 2 states it (PEBBLE's settings), written once.
+
+The reference and fast paths are this one update run two ways (`Execution`): the fast path
+stacks the twin critics into batched matmuls, uses fused Adam, draws policy noise on the
+device and, on CUDA, replays the update from a captured graph (`cuda_graph.GraphedCall`);
+precision (fp32, TF32, bf16 autocast) is a context around the same code. Nothing in an
+update reads a value back to the host: losses are read when `last_metrics` is asked for.
+"""
 
 from __future__ import annotations
 
-import itertools
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 import torch
 import torch.nn.functional as F
-from torch import nn
 
-from seqrank.buffer import Batch
-
-LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
-
-
-def mlp(inputs: int, hidden: int, layers: int, outputs: int) -> nn.Sequential:
-    """`layers` hidden ReLU layers; orthogonal weights, zero biases."""
-    sizes = [inputs] + [hidden] * layers
-    modules: list[nn.Module] = []
-    for a, b in itertools.pairwise(sizes):
-        modules += [nn.Linear(a, b), nn.ReLU()]
-    modules.append(nn.Linear(sizes[-1], outputs))
-    for module in modules:
-        if isinstance(module, nn.Linear):
-            nn.init.orthogonal_(module.weight)
-            nn.init.zeros_(module.bias)
-    return nn.Sequential(*modules)
-
-
-class Actor(nn.Module):
-    def __init__(self, obs_dim: int, act_dim: int, hidden: int, layers: int):
-        super().__init__()
-        self.net = mlp(obs_dim, hidden, layers, 2 * act_dim)
-
-        self.act_dim = act_dim
-
-    def forward(
-        self, obs: torch.Tensor, noise: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(sampled action, its log-probability (B, 1), deterministic action).
-
-        `noise` is the standard normal draw (B, act_dim): the caller decides where it comes
-        from, so the reference and fast paths can be fed the same numbers.
-        """
-        return squashed_gaussian(self.net(obs), noise)
-
-
-def squashed_gaussian(
-    head: torch.Tensor, noise: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """tanh(mean + std * noise), its log-probability and tanh(mean) from the actor's head."""
-    mean, raw_log_std = head.chunk(2, dim=-1)
-    log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(raw_log_std) + 1)
-    pre_tanh = mean + log_std.exp() * noise
-    log_prob = (-0.5 * noise.pow(2) - log_std - 0.5 * math.log(2 * math.pi)).sum(-1, True)
-    # log|det d tanh(x)/dx| = 2 (log 2 - x - softplus(-2x)), numerically stable
-    log_prob -= (2 * (math.log(2) - pre_tanh - F.softplus(-2 * pre_tanh))).sum(-1, True)
-    return torch.tanh(pre_tanh), log_prob, torch.tanh(mean)
-
-
-def descend(optimizer: torch.optim.Optimizer, loss: torch.Tensor) -> None:
-    """One optimiser step on `loss`."""
-    optimizer.zero_grad(set_to_none=True)
-    loss.backward()
-    optimizer.step()
-
-
-def host_noise(rows: int, act_dim: int, generator: torch.Generator, device: torch.device) -> Any:
-    """Standard normal noise drawn on the host from the run's generator (the reference way)."""
-    return torch.randn((rows, act_dim), generator=generator).to(device)
-
-
-class TwinCritic(nn.Module):
-    def __init__(self, obs_dim: int, act_dim: int, hidden: int, layers: int):
-        super().__init__()
-        self.q1 = mlp(obs_dim + act_dim, hidden, layers, 1)
-        self.q2 = mlp(obs_dim + act_dim, hidden, layers, 1)
-
-    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = torch.cat([obs, action], dim=-1)
-        return self.q1(x), self.q2(x)
+from seqrank.agents.critics import Critic, StackedTwinCritic, TwinCritic
+from seqrank.agents.cuda_graph import GraphedCall
+from seqrank.agents.networks import Actor, squashed_gaussian
+from seqrank.agents.precision import autocast, matmul_precision
+from seqrank.agents.sac_state import load_sac_state, sac_state
+from seqrank.buffer import Batch, ReplayBuffer
 
 
 @dataclass(frozen=True)
@@ -97,121 +38,248 @@ class SACSettings:
     target_update_every: int
 
 
+@dataclass(frozen=True)
+class Execution:
+    """How the update runs; the arithmetic is the same. The defaults are the reference:
+    two `nn.Linear` critics, plain Adam, noise from the run's generator, strict fp32."""
+
+    stacked_critics: bool = False
+    fused_adam: bool = False
+    device_noise: bool = False  # on CUDA only; a CPU run draws from the run's generator
+    graphs: bool = False  # CUDA only: replay the update from a captured graph
+    precision: str = "fp32"
+
+    @classmethod
+    def fast(cls, device: torch.device, precision: str) -> Execution:
+        cuda = device.type == "cuda"
+        return cls(True, True, cuda, cuda, precision)
+
+
+def critic_loss(q: tuple[torch.Tensor, torch.Tensor], target: torch.Tensor) -> torch.Tensor:
+    """Both critics' mean squared error against one target, summed."""
+    return F.mse_loss(q[0], target) + F.mse_loss(q[1], target)
+
+
+def descend(optimizer: torch.optim.Optimizer, loss: torch.Tensor) -> None:
+    """One optimiser step on `loss`."""
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+
+
+@torch.no_grad()
+def soft_update(target: Iterable[torch.Tensor], source: Iterable[torch.Tensor], tau: float) -> None:
+    """target <- (1 - tau) target + tau source, for every tensor at once."""
+    torch._foreach_lerp_(list(target), list(source), tau)
+
+
 class SAC:
-    def __init__(self, obs_dim: int, act_dim: int, settings: SACSettings, device: torch.device):
+    def __init__(
+        self,
+        obs_dim: int,
+        act_dim: int,
+        settings: SACSettings,
+        device: torch.device,
+        execution: Execution | None = None,
+    ):
         self.settings, self.device = settings, device
+        self.execution = execution if execution is not None else Execution()
         self.obs_dim, self.act_dim = obs_dim, act_dim
-        self.actor = Actor(obs_dim, act_dim, settings.hidden, settings.layers).to(device)
+        h, n = settings.hidden, settings.layers
+        self.actor = Actor(obs_dim, act_dim, h, n).to(device)
+        layout = StackedTwinCritic if self.execution.stacked_critics else TwinCritic
+        self.critic: Critic = layout(obs_dim, act_dim, h, n).to(device)
+        self.critic_target: Critic = layout(obs_dim, act_dim, h, n).to(device)
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        self.critic_target.requires_grad_(False)
         self.log_alpha = torch.tensor(
             math.log(settings.init_temperature), device=device, requires_grad=True
         )
         self.target_entropy = -float(act_dim)
-        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=settings.actor_lr)
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=settings.alpha_lr)
+        self.actor_opt = self._adam(self.actor.parameters(), settings.actor_lr)
+        self.critic_opt = self._adam(self.critic.parameters(), settings.critic_lr)
+        self.alpha_opt = self._adam([self.log_alpha], settings.alpha_lr)
         self.updates = 0
-        self.last_metrics: dict[str, float] = {}
-        self.reset_critic()
+        self._metrics: dict[str, torch.Tensor] = {}
+        self._graphs: tuple[tuple[int, int], GraphedCall, GraphedCall] | None = None
 
-    def reset_critic(self) -> None:
-        """Fresh critic, target and critic optimiser; actor and temperature are kept."""
-        s = self.settings
-        self.critic = TwinCritic(self.obs_dim, self.act_dim, s.hidden, s.layers).to(self.device)
-        self.critic_target = TwinCritic(self.obs_dim, self.act_dim, s.hidden, s.layers).to(
-            self.device
-        )
-        self.critic_target.load_state_dict(self.critic.state_dict())
-        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.critic_lr)
+    def _adam(self, params: Iterable[torch.Tensor], lr: float) -> torch.optim.Adam:
+        if not self.execution.fused_adam:
+            return torch.optim.Adam(params, lr=lr)
+        capturable = self.device.type == "cuda"
+        return torch.optim.Adam(params, lr=lr, fused=True, capturable=capturable)
 
+    # ---- what the training loop calls (the Agent protocol) ----------------------------
     @property
     def alpha(self) -> torch.Tensor:
         return self.log_alpha.exp()
 
+    @property
+    def last_metrics(self) -> dict[str, float]:
+        """The last update's losses, read back now (the only host sync they cost)."""
+        return {name: float(value) for name, value in self._metrics.items()}
+
     def eval_metrics(self) -> dict[str, float]:
         return {"alpha": float(self.alpha.detach())}
 
-    def noise(self, rows: int, generator: torch.Generator) -> torch.Tensor:
-        return host_noise(rows, self.act_dim, generator, self.device)
-
     @torch.no_grad()
     def act(self, obs: Any, deterministic: bool, generator: torch.Generator) -> Any:
-        obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device).unsqueeze(0)
-        sampled, _, mean = self.actor(obs_t, self.noise(1, generator))
+        obs_t = torch.as_tensor(obs, dtype=torch.float32).to(self.device).unsqueeze(0)
+        with matmul_precision(self.execution.precision):
+            sampled, _, mean = self._policy(obs_t, self.noise(1, generator))
         return (mean if deterministic else sampled)[0].cpu().numpy()
 
-    def critic_target_value(self, batch: Batch, generator: torch.Generator) -> torch.Tensor:
-        """gamma * not_done * (min target Q(s', a') - alpha log pi(a'|s')), no gradient."""
-        return self.target_value_with(batch, self.noise(len(batch.obs), generator))
-
-    def target_value_with(self, batch: Batch, noise: torch.Tensor) -> torch.Tensor:
-        with torch.no_grad():
-            next_action, next_log_prob, _ = self.actor(batch.next_obs, noise)
-            q1, q2 = self.critic_target(batch.next_obs, next_action)
-            soft_value = torch.min(q1, q2) - self.alpha * next_log_prob
-            return self.settings.discount * batch.not_done * soft_value
-
-    def update_critic(self, batch: Batch, noise: torch.Tensor) -> float:
-        target = batch.reward + self.target_value_with(batch, noise)
-        q1, q2 = self.critic(batch.obs, batch.action)
-        loss = F.mse_loss(q1, target) + F.mse_loss(q2, target)
-        descend(self.critic_opt, loss)
-        return float(loss.detach())
-
-    def update_actor_and_alpha(self, batch: Batch, noise: torch.Tensor) -> dict[str, float]:
-        action, log_prob, _ = self.actor(batch.obs, noise)
-        q1, q2 = self.critic(batch.obs, action)
-        actor_loss = (self.alpha.detach() * log_prob - torch.min(q1, q2)).mean()
-        descend(self.actor_opt, actor_loss)
-        alpha_loss = (self.alpha * (-log_prob.detach() - self.target_entropy)).mean()
-        descend(self.alpha_opt, alpha_loss)
-        return {"actor_loss": float(actor_loss.detach()), "alpha": float(self.alpha.detach())}
-
-    def soft_update_target(self) -> None:
-        with torch.no_grad():
-            tau = self.settings.tau
-            for p, tp in zip(
-                self.critic.parameters(), self.critic_target.parameters(), strict=True
-            ):
-                tp.lerp_(p, tau)
-
-    def update(self, batch: Batch, generator: torch.Generator) -> dict[str, float]:
-        """One SAC step: critic, actor and temperature, and every 2nd step the target."""
+    def update(self, batch: Batch, generator: torch.Generator) -> None:
+        """One update from a given batch: critic, actor and temperature, and every
+        `target_update_every` updates the target critic."""
         rows = len(batch.obs)
         next_noise = self.noise(rows, generator)
-        noise = self.noise(rows, generator)
-        return self.update_with_noise(batch, next_noise, noise)
+        self.update_with_noise(batch, next_noise, self.noise(rows, generator))
 
-    def update_with_noise(
-        self, batch: Batch, next_noise: torch.Tensor, noise: torch.Tensor
-    ) -> dict[str, float]:
-        """The update for given policy noise: for s' (critic target), then for s (actor)."""
-        metrics = {"critic_loss": self.update_critic(batch, next_noise)}
-        metrics.update(self.update_actor_and_alpha(batch, noise))
-        self.updates += 1
-        if self.updates % self.settings.target_update_every == 0:
-            self.soft_update_target()
-        self.last_metrics = metrics
-        return metrics
+    def update_from(
+        self, replay: ReplayBuffer, batch_size: int, generator: torch.Generator
+    ) -> None:
+        """The hot-loop update: a batch from `replay`; replayed from a graph on CUDA."""
+        if not self.execution.graphs or not self.actor_opt.state:
+            # eager; also the very first update, which creates the optimisers' state
+            self.update(replay.sample(batch_size, generator), generator)
+            return
+        step, target = self._captured(replay, batch_size)
+        with matmul_precision(self.execution.precision):
+            step()
+        self._count_update(target)
+
+    def reset_critic(self) -> None:
+        """Fresh critic weights, target and Adam state, written in place so that a captured
+        graph stays valid; actor and temperature are kept."""
+        self.critic.reinitialise()
+        self.critic_target.reinitialise()
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        _zero_optimizer_state(self.critic_opt)
 
     def state_dict(self) -> dict[str, Any]:
         return sac_state(self)
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Weights and optimiser state are copied into the existing tensors, so a captured
+        graph stays valid."""
         load_sac_state(self, state)
 
+    # ---- the update ---------------------------------------------------------------------
+    def noise(self, rows: int, generator: torch.Generator) -> torch.Tensor:
+        """Standard normal policy noise: from the run's generator on the host (a resumed
+        run then reproduces an uninterrupted one), or drawn on the device (fast, CUDA)."""
+        if self.execution.device_noise:
+            return torch.randn((rows, self.act_dim), device=self.device)
+        return torch.randn((rows, self.act_dim), generator=generator).to(self.device)
 
-def sac_state(agent: Any) -> dict[str, Any]:
-    """Weights, temperature, optimisers and update count of a SAC agent (either path)."""
-    state = {name: getattr(agent, name).state_dict() for name in SAC_PARTS}
-    return {**state, "log_alpha": agent.log_alpha.detach().clone(), "updates": agent.updates}
+    def critic_target_value(self, batch: Batch, generator: torch.Generator) -> torch.Tensor:
+        """gamma * not_done * (min target Q(s', a') - alpha log pi(a'|s')), no gradient."""
+        return self._target_value(batch, self.noise(len(batch.obs), generator))
+
+    def update_with_noise(
+        self, batch: Batch, next_noise: torch.Tensor, noise: torch.Tensor
+    ) -> None:
+        """The update for given policy noise: for s' (critic target), then for s (actor)."""
+        with matmul_precision(self.execution.precision):
+            self._step(batch, next_noise, noise)
+            self._count_update(self._soft_update_target)
+
+    def _count_update(self, target_update: Any) -> None:
+        self.updates += 1
+        if self.updates % self.settings.target_update_every == 0:
+            target_update()
+
+    def _policy(
+        self, obs: torch.Tensor, noise: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The actor's network in the chosen precision, the squashing always in fp32."""
+        with autocast(self.execution.precision, self.device):
+            head = self.actor.net(obs)
+        return squashed_gaussian(head.float(), noise)
+
+    def _q(
+        self, critic: Critic, obs: torch.Tensor, action: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        with autocast(self.execution.precision, self.device):
+            q1, q2 = critic(obs, action)
+        return q1.float(), q2.float()
+
+    def _target_value(self, batch: Batch, noise: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            next_action, next_log_prob, _ = self._policy(batch.next_obs, noise)
+            q1, q2 = self._q(self.critic_target, batch.next_obs, next_action)
+            soft_value = torch.min(q1, q2) - self.alpha * next_log_prob
+            return self.settings.discount * batch.not_done * soft_value
+
+    def _step(self, batch: Batch, next_noise: torch.Tensor, noise: torch.Tensor) -> None:
+        target = batch.reward + self._target_value(batch, next_noise)
+        loss = critic_loss(self._q(self.critic, batch.obs, batch.action), target)
+        descend(self.critic_opt, loss)
+
+        self.critic.requires_grad_(False)  # the actor's loss needs no critic gradients
+        action, log_prob, _ = self._policy(batch.obs, noise)
+        q1_pi, q2_pi = self._q(self.critic, batch.obs, action)
+        self.critic.requires_grad_(True)
+        actor_loss = (self.alpha.detach() * log_prob - torch.min(q1_pi, q2_pi)).mean()
+        descend(self.actor_opt, actor_loss)
+
+        alpha_loss = (self.alpha * (-log_prob.detach() - self.target_entropy)).mean()
+        descend(self.alpha_opt, alpha_loss)
+        self._write_metrics(loss, actor_loss)
+
+    def _write_metrics(self, critic_loss: torch.Tensor, actor_loss: torch.Tensor) -> None:
+        values = {
+            "critic_loss": critic_loss.detach(),
+            "actor_loss": actor_loss.detach(),
+            "alpha": self.alpha.detach(),
+        }
+        if not self._metrics:
+            self._metrics = {name: value.clone() for name, value in values.items()}
+            return
+        for name, value in values.items():  # in place: graph replays write here too
+            self._metrics[name].copy_(value)
+
+    def _soft_update_target(self) -> None:
+        soft_update(self.critic_target.parameters(), self.critic.parameters(), self.settings.tau)
+
+    # ---- CUDA graphs --------------------------------------------------------------------
+    def _captured(self, replay: ReplayBuffer, batch_size: int) -> tuple[GraphedCall, GraphedCall]:
+        key = (id(replay), batch_size)
+        if self._graphs is None or self._graphs[0] != key:
+            if replay.storage != self.device:
+                raise ValueError("graph updates need the replay buffer on the training device")
+
+            def sampled_step() -> None:
+                batch = replay.sample_on_device(batch_size)
+                self._step(batch, self.noise(batch_size, _UNUSED), self.noise(batch_size, _UNUSED))
+
+            step = GraphedCall(sampled_step, self._touched)
+            self._graphs = (key, step, GraphedCall(self._soft_update_target, list, warmup=False))
+        return self._graphs[1], self._graphs[2]
+
+    @property
+    def capture_seconds(self) -> float:
+        """Time spent capturing graphs (reported apart from the update time)."""
+        return 0.0 if self._graphs is None else sum(g.capture_seconds for g in self._graphs[1:])
+
+    def _touched(self) -> list[torch.Tensor]:
+        """Every tensor an update changes: weights, temperature, optimiser state, metrics."""
+        tensors = [*self.actor.parameters(), *self.critic.parameters(), self.log_alpha]
+        tensors += [*self.critic_target.parameters(), *self._metrics.values()]
+        for opt in (self.actor_opt, self.critic_opt, self.alpha_opt):
+            for state in opt.state.values():
+                tensors += [v for v in state.values() if isinstance(v, torch.Tensor)]
+        return tensors
 
 
-def load_sac_state(agent: Any, state: dict[str, Any]) -> None:
-    """The inverse of `sac_state`; weights are copied into the existing tensors."""
-    for name in SAC_PARTS:
-        getattr(agent, name).load_state_dict(state[name])
-    with torch.no_grad():
-        agent.log_alpha.copy_(state["log_alpha"])
-    agent.updates = state["updates"]
+_UNUSED = torch.Generator()  # the device draws its own noise on CUDA
 
 
-SAC_PARTS = ("actor", "critic", "critic_target", "actor_opt", "critic_opt", "alpha_opt")
+@torch.no_grad()
+def _zero_optimizer_state(optimizer: torch.optim.Optimizer) -> None:
+    """A fresh optimiser's state, written into the existing tensors."""
+    for state in optimizer.state.values():
+        for value in state.values():
+            if isinstance(value, torch.Tensor):
+                value.zero_()

@@ -7,9 +7,10 @@ medians over repeats.
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -19,10 +20,13 @@ import torch
 
 from seqrank.agents.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
+from seqrank.choices import Device, Precision, TrainingPath
 from seqrank.config import TrainConfig
 from seqrank.reward.model import RewardModel
-from seqrank.training.loop import Trainer, make_agent
+from seqrank.training.agent_factory import make_sac
 from seqrank.training.runs import RunDir
+from seqrank.training.runtime import Runtime
+from seqrank.training.trainer import Trainer
 
 BUFFER_ROWS = 20_000  # transitions in the benchmark's replay buffer
 REWARD_PAIRS = 1_000  # labelled pairs in the reward-training benchmark (400 asked + inferred)
@@ -59,7 +63,7 @@ def update_microseconds(
     """Mean time of one SAC update in the trainer's hot loop, and the capture time."""
     dims = _Dims(config.task)
     torch.manual_seed(0)
-    agent = make_agent(config, dims, device, fast, precision)
+    agent = make_sac(config, dims, Runtime(device, fast, precision))
     storage = device if fast else torch.device("cpu")
     buffer = ReplayBuffer(BUFFER_ROWS, dims.obs_dim, dims.act_dim, device, storage)
     rng = np.random.default_rng(0)
@@ -70,13 +74,8 @@ def update_microseconds(
     buffer.size_t.fill_(BUFFER_ROWS)
     generator = torch.Generator().manual_seed(0)
 
-    def reference_update() -> None:
-        agent.update(buffer.sample(config.batch, generator), generator)  # syncs to log
-
-    def fast_update() -> None:
-        agent.update_from_buffer(buffer, config.batch, generator)
-
-    one = fast_update if fast else reference_update
+    def one() -> None:
+        agent.update_from(buffer, config.batch, generator)
 
     def many() -> None:
         for _ in range(updates):
@@ -132,8 +131,8 @@ def loop_rates(
     first = 2 * dims.episode_length
     config = replace(
         config,
-        path="fast" if fast else "reference",
-        precision=precision,
+        path=TrainingPath.FAST if fast else TrainingPath.REFERENCE,
+        precision=Precision(precision),
         seed_steps=dims.episode_length,
         unsup_steps=dims.episode_length,
         steps=first + steps,
@@ -142,12 +141,13 @@ def loop_rates(
         eval_every=first + steps,
         eval_episodes=1,
         checkpoint_every=10 * (first + steps),
-        device=device.type,
+        device=Device(device.type),
     )
     marks: dict[int, float] = {}
     with tempfile.TemporaryDirectory(prefix="seqrank-bench-") as folder:
         trainer = Trainer(config, RunDir.create(Path(folder) / "run", config, device.type))
-        durations = _time_phases(trainer, ("_finish_feedback", "_evaluate"), device)
+        durations: dict[str, float] = {"feedback_session": 0.0, "evaluation": 0.0}
+        trainer.phase_timer = _phase_timer(durations, device)
 
         def mark(step: int, live: dict[str, Any]) -> None:
             synchronize(device)
@@ -161,26 +161,22 @@ def loop_rates(
         raise ValueError(f"--loop-steps {steps} is too short: it needs at least 300")
     return {
         "steps_per_s": (end - start) / (marks[end] - marks[start]),
-        "session_s": durations["_finish_feedback"],
-        "eval_episode_s": durations["_evaluate"],
+        "session_s": durations["feedback_session"],
+        "eval_episode_s": durations["evaluation"],
     }
 
 
-def _time_phases(
-    trainer: Trainer, names: tuple[str, ...], device: torch.device
-) -> dict[str, float]:
-    """Wrap the trainer's phase methods to record how long their (last) call took."""
-    durations: dict[str, float] = dict.fromkeys(names, 0.0)
-    for name in names:
-        method = getattr(trainer, name)
+def _phase_timer(
+    durations: dict[str, float], device: torch.device
+) -> Callable[[str], contextlib.AbstractContextManager[None]]:
+    """A trainer's phase timer that records how long each phase's (last) run took."""
 
-        def timed(*args: Any, _name: str = name, _method: Any = method) -> Any:
-            synchronize(device)
-            started = time.perf_counter()
-            result = _method(*args)
-            synchronize(device)
-            durations[_name] = time.perf_counter() - started
-            return result
+    @contextlib.contextmanager
+    def timed(name: str) -> Iterator[None]:
+        synchronize(device)
+        started = time.perf_counter()
+        yield
+        synchronize(device)
+        durations[name] = time.perf_counter() - started
 
-        setattr(trainer, name, timed)
-    return durations
+    return timed

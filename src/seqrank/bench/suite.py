@@ -176,10 +176,11 @@ def full_run(plan: BenchPlan) -> dict[str, Any]:
     import tempfile
     from pathlib import Path
 
-    from seqrank.training.loop import Trainer
+    from seqrank.choices import Precision, TrainingPath
     from seqrank.training.runs import RunDir
+    from seqrank.training.trainer import Trainer
 
-    config = replace(plan.config, path="fast", precision="auto")
+    config = replace(plan.config, path=TrainingPath.FAST, precision=Precision.AUTO)
     with tempfile.TemporaryDirectory(prefix="seqrank-bench-") as folder:
         trainer = Trainer(config, RunDir.create(Path(folder) / "run", config, plan.device.type))
         started = time.perf_counter()

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.episodes import Segments
 from seqrank.feedback.label_file import LabelFile, read_label_file
@@ -32,14 +31,14 @@ class ReplaySource:
     def has_session(self, session: int) -> bool:
         return session < len(self.sessions)
 
-    def check_compatible(self, config: TrainConfig, obs_dim: int, act_dim: int) -> None:
-        task = self.labels.header.get("task")
-        if task is not None and canonical_task(task) != canonical_task(config.task):
-            raise ValueError(f"label file {self.source} was recorded on {task}, not {config.task}")
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
+        recorded = self.labels.header.get("task")
+        if recorded is not None and canonical_task(recorded) != canonical_task(task):
+            raise ValueError(f"label file {self.source} was recorded on {recorded}, not {task}")
         width = len(next(iter(self.labels.segments.values()))["features"][0])
         if width != obs_dim + act_dim:
             raise ValueError(
-                f"label file {self.source} has {width} features per step; task {config.task} "
+                f"label file {self.source} has {width} features per step; task {task} "
                 f"needs {obs_dim + act_dim} (observation + action)"
             )
 

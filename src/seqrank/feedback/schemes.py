@@ -23,10 +23,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Protocol
 
 import numpy as np
 
+from seqrank.choices import parse_choice
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 Ask = Callable[[int, int], Answer]
@@ -204,8 +206,8 @@ def get_scheme(name: str) -> Scheme:
 
 def segments_needed(scheme: str, budget: int) -> int:
     """How many distinct segments a session of `budget` questions may draw."""
-    get_scheme(scheme)
-    return 2 * budget if scheme == "pairwise" else budget + 1
+    has_defender = scheme_has_defender(scheme)
+    return budget + 1 if has_defender else 2 * budget
 
 
 def _check_pool(scheme: str, pool_size: int, budget: int) -> None:
@@ -219,3 +221,20 @@ def _check_pool(scheme: str, pool_size: int, budget: int) -> None:
             f"{scheme}: {budget} questions need at least {needed} distinct segments, "
             f"but the pool has {pool_size}"
         )
+
+
+class SchemeName(StrEnum):
+    PAIRWISE = "pairwise"
+    SEQUENTIAL = "sequential"
+    ROOT = "root"
+    RANKED = "ranked"
+
+    @property
+    def has_defender(self) -> bool:
+        """True when questions pit a new challenger against a kept defender."""
+        return self is not SchemeName.PAIRWISE
+
+
+def scheme_has_defender(name: str) -> bool:
+    """True for schemes whose questions pit a challenger against a kept defender."""
+    return parse_choice(SchemeName, name, "scheme").has_defender

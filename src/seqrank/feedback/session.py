@@ -14,7 +14,6 @@ from typing import Protocol
 
 import numpy as np
 
-from seqrank.config import TrainConfig
 from seqrank.episodes import EpisodeStore, Segments
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
@@ -47,8 +46,8 @@ class FeedbackSource(Protocol):
         """False when this source cannot give session `session` (recorded labels ran out)."""
         ...
 
-    def check_compatible(self, config: TrainConfig, obs_dim: int, act_dim: int) -> None:
-        """Raise ValueError when this source cannot serve a run of `config` (replayed labels
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
+        """Raise ValueError when this source cannot serve a run on `task` (replayed labels
         of another task, say)."""
         ...
 
@@ -62,7 +61,7 @@ class ScriptedSource:
     def has_session(self, session: int) -> bool:
         return True
 
-    def check_compatible(self, config: TrainConfig, obs_dim: int, act_dim: int) -> None:
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
         pass
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
@@ -78,13 +77,23 @@ class ScriptedSource:
 
 
 @dataclass(frozen=True)
+class SessionPlan:
+    """How a run's sessions are cut and chosen (the run config's feedback settings)."""
+
+    scheme: str
+    selection: str  # uniform, disagreement or entropy (after the first session)
+    oversample: int  # candidate pool = this x what the scheme needs, for informative picks
+    segment_length: int
+
+
+@dataclass(frozen=True)
 class SessionOutcome:
     stats: AugmentationStats
     segments_used: int
 
 
 def prepare_session(
-    config: TrainConfig,
+    plan: SessionPlan,
     questions: int,
     episodes: EpisodeStore,
     reward_model: RewardModel,
@@ -98,13 +107,13 @@ def prepare_session(
     With an informative selection (after the first session) the candidate pool is
     `oversample` times what the scheme needs, and the chooser picks among it.
     """
-    needed = segments_needed(config.scheme, questions)
-    use_model = informative and config.selection != "uniform"
-    pool = needed * (config.oversample if use_model else 1)
-    sampled = episodes.sample_segments(pool, config.segment_length, rng)
+    needed = segments_needed(plan.scheme, questions)
+    use_model = informative and plan.selection != "uniform"
+    pool = needed * (plan.oversample if use_model else 1)
+    sampled = episodes.sample_segments(pool, plan.segment_length, rng)
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
-    chooser = make_chooser(config.selection if use_model else "uniform", member_returns)
-    return SessionRequest(config.scheme, questions, session, sampled, chooser, rng, margin)
+    chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
+    return SessionRequest(plan.scheme, questions, session, sampled, chooser, rng, margin)
 
 
 def store_session(

@@ -135,3 +135,63 @@ def _rational_choice(
     if cfg.tie_rule == "first":
         return Answer.FIRST
     return Answer.FIRST if rng.random() < 0.5 else Answer.SECOND
+
+
+KNOBS = ("beta", "gamma", "eps_mistake", "eps_skip", "eps_equal", "tie_rule")
+
+
+@dataclass(frozen=True)
+class TeacherSpec:
+    """Who answers a run's questions, parsed once from the `--teacher` value:
+
+    - a scripted teacher: a preset (`oracle`, `mistake`, ...), optionally with B-Pref knobs
+      changed (`mistake,eps_mistake=0.2`), or knobs alone from the oracle
+      (`beta=1,gamma=0.95`); knobs: beta, gamma, eps_mistake, eps_skip, eps_equal, tie_rule;
+    - `replay:FILE`: labels exported earlier, replayed session by session;
+    - `human`: a person at the labelling page (`seqrank label online`).
+    """
+
+    kind: Literal["scripted", "replay", "human"]
+    scripted: TeacherConfig | None = None
+    replay_file: str | None = None
+    short_name: str = "oracle"  # for run directory names: a preset, custom, replay, human
+
+
+def parse_teacher(value: str) -> TeacherSpec:
+    """The spec `value` stands for; a ValueError names what is wrong and what is accepted."""
+    if value == "human":
+        return TeacherSpec("human", short_name="human")
+    if value.startswith("replay:"):
+        path = value.removeprefix("replay:")
+        if not path:
+            raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
+        return TeacherSpec("replay", replay_file=path, short_name="replay")
+    parts = [part.strip() for part in value.split(",")]
+    base, name = TeacherConfig(), "custom"
+    if parts and "=" not in parts[0]:
+        name = parts.pop(0)
+        if name not in TEACHER_PRESETS:
+            raise ValueError(
+                f"unknown teacher {name!r}; accepted: {', '.join(TEACHER_PRESETS)} (optionally "
+                "followed by ,knob=value), knob=value,..., human (the labelling page) or "
+                "replay:FILE (labels exported as JSONL)"
+            )
+        base = TEACHER_PRESETS[name]
+    knobs = dict(_knob(part, value) for part in parts)
+    short = name if not knobs else "custom"
+    return TeacherSpec("scripted", replace(base, **knobs), short_name=short)  # type: ignore[arg-type]
+
+
+def _knob(part: str, value: str) -> tuple[str, float | str]:
+    key, _, text = part.partition("=")
+    key = key.strip()
+    if key not in KNOBS or not text:
+        raise ValueError(
+            f"teacher {value!r}: {part!r} is not knob=value; knobs: {', '.join(KNOBS)}"
+        )
+    if key == "tie_rule":
+        return key, text.strip()
+    try:
+        return key, float(text)
+    except ValueError:
+        raise ValueError(f"teacher {value!r}: {key} must be a number, got {text!r}") from None

@@ -204,21 +204,9 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
 
 
 def _saved_policy(run_dir: Path, env: Any) -> Any:
-    import torch
+    from seqrank.training.agent_factory import load_policy
 
-    from seqrank.training.loop import make_agent
-    from seqrank.training.runs import RunDir
-
-    run = RunDir.open(run_dir)
-    state = run.load_checkpoint()
-    if state is None:
-        raise ValueError(f"{run_dir} has no checkpoint yet, so it has no policy to roll out")
-    agent = make_agent(run.read_config(), env, torch.device("cpu"))
-    if hasattr(agent, "actor"):  # SAC: only the actor acts (the critics' layout is per path)
-        agent.actor.load_state_dict(state["agent"]["actor"])
-    else:
-        agent.load_state_dict(state["agent"])
-    return agent
+    return load_policy(run_dir, env)
 
 
 def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) -> int:

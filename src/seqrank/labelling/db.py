@@ -6,103 +6,52 @@ any moment. A question is keyed by (run, session, index); its answer by the ques
 a repeated submission finds the stored answer instead of writing a second one.
 
 `run` names a training run inside one labelling directory ("online" / "offline", or the
-scheme in a study); `session` and `index` count from 0.
+scheme in a study); `session` and `index` count from 0. The schema and the records the
+queries return are in `seqrank.labelling.db_records`.
 """
 
 from __future__ import annotations
 
-import io
 import sqlite3
 import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from seqrank.episodes import Segments
+from seqrank.labelling.db_records import (
+    CHOICES,
+    PENDING_QUESTION_SQL,
+    AnswerConflict,
+    NotAsked,
+    StoredAnswer,
+    StoredQuestion,
+    answer_from_row,
+    choice_to_answer,
+    connect,
+    from_blob,
+    question_from_row,
+    segment_values,
+    segments_from_rows,
+    to_blob,
+)
+
+__all__ = [
+    "CHOICES",
+    "DB_NAME",
+    "AnswerConflict",
+    "LabelDB",
+    "NotAsked",
+    "StoredAnswer",
+    "StoredQuestion",
+    "choice_to_answer",
+    "from_blob",
+    "to_blob",
+]
 
 DB_NAME = "labels.sqlite"
-CHOICES = ("left", "right", "equal", "skip", "timeout")
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS sessions (
-    run TEXT NOT NULL, session INTEGER NOT NULL, scheme TEXT NOT NULL,
-    questions INTEGER NOT NULL, seed INTEGER NOT NULL, defender_side TEXT NOT NULL,
-    created REAL NOT NULL, PRIMARY KEY (run, session));
-CREATE TABLE IF NOT EXISTS segments (
-    id INTEGER PRIMARY KEY AUTOINCREMENT, run TEXT NOT NULL, session INTEGER NOT NULL,
-    pool_id INTEGER NOT NULL, features BLOB NOT NULL, rewards BLOB NOT NULL, states BLOB,
-    context INTEGER, UNIQUE (run, session, pool_id));
-CREATE TABLE IF NOT EXISTS choices (
-    run TEXT NOT NULL, session INTEGER NOT NULL, k INTEGER NOT NULL, position INTEGER NOT NULL,
-    PRIMARY KEY (run, session, k));
-CREATE TABLE IF NOT EXISTS questions (
-    id INTEGER PRIMARY KEY AUTOINCREMENT, run TEXT NOT NULL, session INTEGER NOT NULL,
-    idx INTEGER NOT NULL, first INTEGER NOT NULL, second INTEGER NOT NULL,
-    defender INTEGER, left_seg INTEGER NOT NULL, right_seg INTEGER NOT NULL,
-    created REAL NOT NULL, UNIQUE (run, session, idx));
-CREATE TABLE IF NOT EXISTS answers (
-    question_id INTEGER PRIMARY KEY REFERENCES questions (id), choice TEXT NOT NULL,
-    answer TEXT NOT NULL, latency_ms REAL NOT NULL, annotator TEXT NOT NULL,
-    answered_at REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS surveys (
-    run TEXT PRIMARY KEY, scheme TEXT NOT NULL, satisfaction INTEGER NOT NULL,
-    criteria TEXT NOT NULL, annotator TEXT NOT NULL, answered_at REAL NOT NULL);
-"""
-
-
-@dataclass(frozen=True)
-class StoredQuestion:
-    id: int
-    run: str
-    session: int
-    index: int
-    first: int  # segment ids (the segments table)
-    second: int
-    defender: int | None
-    left: int
-    right: int
-
-
-@dataclass(frozen=True)
-class StoredAnswer:
-    question_id: int
-    choice: str  # what was clicked: left / right / equal / skip / timeout
-    answer: str  # mapped to the question's order: first / second / equal / skip
-    latency_ms: float
-    annotator: str
-    answered_at: float
-
-
-class AnswerConflict(Exception):
-    """The question already holds a different answer."""
-
-
-class NotAsked(Exception):
-    """The question has no answer and is not the one being asked."""
-
-
-def to_blob(array: np.ndarray) -> bytes:
-    buffer = io.BytesIO()
-    np.save(buffer, np.asarray(array), allow_pickle=False)
-    return buffer.getvalue()
-
-
-def from_blob(blob: bytes) -> np.ndarray:
-    return np.load(io.BytesIO(blob), allow_pickle=False)
-
-
-def choice_to_answer(choice: str, question: StoredQuestion) -> str:
-    """Map what was clicked on screen back to the question's own order."""
-    if choice in ("left", "right"):
-        shown = question.left if choice == "left" else question.right
-        return "first" if shown == question.first else "second"
-    return "skip" if choice == "timeout" else choice
 
 
 class LabelDB:
@@ -113,13 +62,7 @@ class LabelDB:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.RLock()
         self.changed = threading.Condition(self._lock)
-        self._conn = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
-        self._conn.row_factory = sqlite3.Row
-        self._conn.execute("PRAGMA journal_mode=WAL")
-        self._conn.execute("PRAGMA synchronous=FULL")
-        self._conn.execute("PRAGMA busy_timeout=10000")
-        with self._lock:
-            self._conn.executescript(_SCHEMA)
+        self._conn = connect(self.path)
 
     @classmethod
     def in_dir(cls, directory: Path) -> LabelDB:
@@ -181,37 +124,17 @@ class LabelDB:
             )
             ids = pool_ids if pool_ids is not None else list(range(len(segments.features)))
             for row, pool_id in enumerate(ids):
-                self._insert_segment(conn, run, session, pool_id, segments, row)
-
-    @staticmethod
-    def _insert_segment(
-        conn: sqlite3.Connection,
-        run: str,
-        session: int,
-        pool_id: int,
-        segments: Segments,
-        row: int,
-    ) -> None:
-        states = segments.states[row]
-        conn.execute(
-            "INSERT OR IGNORE INTO segments (run, session, pool_id, features, rewards, states, "
-            "context) VALUES (?, ?, ?, ?, ?, ?, ?)",
-            (
-                run,
-                session,
-                pool_id,
-                to_blob(segments.features[row].astype(np.float32)),
-                to_blob(np.asarray(segments.rewards[row], np.float64)),
-                None if states is None else to_blob(states),
-                segments.contexts[row],
-            ),
-        )
+                conn.execute(
+                    "INSERT OR IGNORE INTO segments (run, session, pool_id, features, rewards, "
+                    "states, context) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    segment_values(run, session, pool_id, segments, row),
+                )
 
     def pool(self, run: str, session: int) -> Segments:
         rows = self._rows(
             "SELECT * FROM segments WHERE run = ? AND session = ? ORDER BY pool_id", run, session
         )
-        return _segments(rows)
+        return segments_from_rows(rows)
 
     def segment_ids(self, run: str, session: int) -> dict[int, int]:
         """pool id -> segment id."""
@@ -269,7 +192,7 @@ class LabelDB:
                 "SELECT * FROM questions WHERE run = ? AND session = ? AND idx = ?",
                 (run, session, index),
             ).fetchone()
-        question = _question(row)
+        question = question_from_row(row)
         if (question.first, question.second) != (first, second):
             raise RuntimeError(
                 f"{self.path}: run {run!r} session {session} question {index} was stored as "
@@ -280,19 +203,16 @@ class LabelDB:
 
     def question(self, question_id: int) -> StoredQuestion | None:
         rows = self._rows("SELECT * FROM questions WHERE id = ?", question_id)
-        return _question(rows[0]) if rows else None
+        return question_from_row(rows[0]) if rows else None
 
     def pending_question(self) -> StoredQuestion | None:
         """The oldest question without an answer (there is at most one while asking)."""
-        rows = self._rows(
-            "SELECT q.* FROM questions q LEFT JOIN answers a ON a.question_id = q.id "
-            "WHERE a.question_id IS NULL ORDER BY q.id LIMIT 1"
-        )
-        return _question(rows[0]) if rows else None
+        rows = self._rows(PENDING_QUESTION_SQL)
+        return question_from_row(rows[0]) if rows else None
 
     def answer(self, question_id: int) -> StoredAnswer | None:
         rows = self._rows("SELECT * FROM answers WHERE question_id = ?", question_id)
-        return _answer(rows[0]) if rows else None
+        return answer_from_row(rows[0]) if rows else None
 
     def record_answer(
         self,
@@ -316,7 +236,7 @@ class LabelDB:
                 "SELECT * FROM answers WHERE question_id = ?", (question.id,)
             ).fetchone()
             if row is not None:
-                stored = _answer(row)
+                stored = answer_from_row(row)
                 if stored.choice != choice:
                     raise AnswerConflict(
                         f"question {question.id} was already answered {stored.choice!r}; "
@@ -325,10 +245,7 @@ class LabelDB:
                 return stored, True
             # checked in the same transaction as the insert: a concurrent duplicate that lost
             # the race must find the stored answer above, not a newer pending question
-            pending = conn.execute(
-                "SELECT q.id FROM questions q LEFT JOIN answers a ON a.question_id = q.id "
-                "WHERE a.question_id IS NULL ORDER BY q.id LIMIT 1"
-            ).fetchone()
+            pending = conn.execute(PENDING_QUESTION_SQL).fetchone()
             if must_be_asked and (pending is None or pending["id"] != question.id):
                 now_asked = "none" if pending is None else str(pending["id"])
                 raise NotAsked(
@@ -362,7 +279,7 @@ class LabelDB:
             f"FROM questions q JOIN answers a ON a.question_id = q.id {where} ORDER BY q.id",
             *(() if run is None else (run,)),
         )
-        return [(_question(r), _answer(r, r["id"])) for r in rows]
+        return [(question_from_row(r), answer_from_row(r, r["id"])) for r in rows]
 
     def count(self, run: str, session: int) -> int:
         rows = self._rows(
@@ -394,39 +311,3 @@ class LabelDB:
                 (run, scheme, satisfaction, criteria, annotator, time.time()),
             )
             return cursor.rowcount == 1
-
-
-def _question(row: sqlite3.Row) -> StoredQuestion:
-    return StoredQuestion(
-        row["id"],
-        row["run"],
-        row["session"],
-        row["idx"],
-        row["first"],
-        row["second"],
-        row["defender"],
-        row["left_seg"],
-        row["right_seg"],
-    )
-
-
-def _answer(row: sqlite3.Row, question_id: int | None = None) -> StoredAnswer:
-    return StoredAnswer(
-        row["question_id"] if question_id is None else question_id,
-        row["choice"],
-        row["answer"],
-        row["latency_ms"],
-        row["annotator"],
-        row["answered_at"],
-    )
-
-
-def _segments(rows: list[sqlite3.Row]) -> Segments:
-    if not rows:
-        raise ValueError("no segments stored")
-    return Segments(
-        np.stack([from_blob(r["features"]) for r in rows]),
-        np.stack([from_blob(r["rewards"]) for r in rows]),
-        [None if r["states"] is None else from_blob(r["states"]) for r in rows],
-        [r["context"] for r in rows],
-    )

@@ -10,14 +10,15 @@ is asked again, so nothing acknowledged is lost or asked twice.
 
 from __future__ import annotations
 
+import sqlite3
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from seqrank.episodes import Segments
-from seqrank.feedback.schemes import SessionRecord, get_scheme
+from seqrank.feedback.schemes import SessionRecord, get_scheme, scheme_has_defender
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.clips import ClipRenderer
 from seqrank.labelling.db import LabelDB
@@ -68,11 +69,40 @@ class HumanSource:
     def has_session(self, session: int) -> bool:
         return True
 
-    def check_compatible(self, config: Any, obs_dim: int, act_dim: int) -> None:
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
         pass
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
-        hub, db, run, session = self.hub, self.hub.db, self.run, request.session
+        row = self._stored_session(request)
+        db = self.hub.db
+        pool = db.pool(self.run, request.session)
+        page_session = _PageSession(
+            hub=self.hub,
+            run=self.run,
+            request=request,
+            segment_ids=db.segment_ids(self.run, request.session),
+            seed=int(row["seed"]),
+            defender_side=str(row["defender_side"]),
+            has_defender=scheme_has_defender(request.scheme),
+            same_pool=np.array_equal(pool.features, request.segments.features),
+            stored_choices=db.stored_choices(self.run, request.session),
+        )
+        self.hub.run, self.hub.scheme = self.run, request.scheme
+        if self.hub.renderer is not None:  # render the pool ahead of the questions
+            self.hub.renderer.ahead(sorted(page_session.segment_ids.values()))
+        scheme = get_scheme(request.scheme)
+        record = scheme(
+            len(pool.features),
+            int(row["questions"]),
+            page_session.ask,
+            np.random.default_rng(page_session.seed),
+            page_session.choose,
+        )
+        return pool, record
+
+    def _stored_session(self, request: SessionRequest) -> sqlite3.Row:
+        """The session's stored row, storing the session and its pool first if it is new."""
+        db, run, session = self.hub.db, self.run, request.session
         row = db.session_row(run, session)
         if row is None:
             seed = _session_seed(self.seed, run, session)
@@ -87,56 +117,60 @@ class HumanSource:
                 f"run {run!r} session {session} was stored with scheme {row['scheme']!r}, "
                 f"not {request.scheme!r}"
             )
-        pool = db.pool(run, session)
-        ids = db.segment_ids(run, session)
-        same_pool = np.array_equal(pool.features, request.segments.features)
-        stored_choices = db.stored_choices(run, session)
-        seed, side = int(row["seed"]), str(row["defender_side"])
-        has_defender = request.scheme != "pairwise"
-        made = 0
+        return row
 
-        def choose(defender: int | None, available: Any, rng: np.random.Generator) -> int:
-            nonlocal made
-            if made < len(stored_choices):
-                position = stored_choices[made]
-            elif same_pool:
-                position = request.chooser(defender, available, rng)
+
+@dataclass
+class _PageSession:
+    """One session's `choose` and `ask` for its scheme, replaying what is stored first.
+
+    Stored choices are given back in order and only new ones are stored, so a session
+    replayed after a restart draws the same segments and reaches the same questions.
+    """
+
+    hub: Hub
+    run: str
+    request: SessionRequest
+    segment_ids: dict[int, int]  # pool id -> segment id
+    seed: int
+    defender_side: str  # where a defender is shown, all session long
+    has_defender: bool
+    same_pool: bool
+    stored_choices: list[int]
+    choices_made: int = 0
+    questions_asked: int = 0
+
+    def choose(
+        self, defender: int | None, available: Sequence[int], rng: np.random.Generator
+    ) -> int:
+        made = self.choices_made
+        if made < len(self.stored_choices):
+            position = self.stored_choices[made]
+        else:
+            if self.same_pool:
+                position = self.request.chooser(defender, available, rng)
             else:  # the stored pool is not the sampled one (a resumed GPU run): draw uniformly
                 position = int(rng.integers(len(available)))
-            if made >= len(stored_choices):
-                db.add_choice(run, session, made, position)
-            made += 1
-            return position
+            self.hub.db.add_choice(self.run, self.request.session, made, position)
+        self.choices_made += 1
+        return position
 
-        asked = 0
-        questions_total = int(row["questions"])
-        hub.run, hub.scheme = run, request.scheme
-
-        def ask(first: int, second: int) -> Answer:
-            nonlocal asked
-            index = asked
-            a, b = ids[first], ids[second]
-            if has_defender:
-                left, right = (a, b) if side == "left" else (b, a)
-            else:
-                swap = np.random.default_rng([seed, index]).random() < 0.5
-                left, right = (b, a) if swap else (a, b)
-            question = db.ensure_question(
-                run, session, index, a, b, a if has_defender else None, left, right
-            )
-            asked += 1
-            if hub.renderer is not None:
-                hub.renderer.ahead([left, right])
-            hub.set_phase("asking", f"session {session + 1}: question {index + 1}")
-            stored = db.wait_answer(question.id, hub.stop)
-            if stored is None:
-                raise Stopped("the labelling server stopped")
-            return Answer(stored.answer)
-
-        if hub.renderer is not None:  # render the pool ahead of the questions
-            hub.renderer.ahead(sorted(ids.values()))
-        scheme = get_scheme(request.scheme)
-        record = scheme(
-            len(pool.features), questions_total, ask, np.random.default_rng(seed), choose
+    def ask(self, first: int, second: int) -> Answer:
+        hub, session, index = self.hub, self.request.session, self.questions_asked
+        a, b = self.segment_ids[first], self.segment_ids[second]
+        if self.has_defender:  # the defender keeps its side so that the person can follow it
+            left, right = (a, b) if self.defender_side == "left" else (b, a)
+        else:
+            swap = np.random.default_rng([self.seed, index]).random() < 0.5
+            left, right = (b, a) if swap else (a, b)
+        question = hub.db.ensure_question(
+            self.run, session, index, a, b, a if self.has_defender else None, left, right
         )
-        return pool, record
+        self.questions_asked += 1
+        if hub.renderer is not None:
+            hub.renderer.ahead([left, right])
+        hub.set_phase("asking", f"session {session + 1}: question {index + 1}")
+        stored = hub.db.wait_answer(question.id, hub.stop)
+        if stored is None:
+            raise Stopped("the labelling server stopped")
+        return Answer(stored.answer)

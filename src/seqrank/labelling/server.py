@@ -20,13 +20,13 @@ from collections.abc import Awaitable, Callable
 from importlib import resources
 from typing import Literal
 
-from fastapi import FastAPI, HTTPException, Request, Response
+from fastapi import APIRouter, FastAPI, HTTPException, Request, Response
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
-from seqrank.labelling.db import AnswerConflict, NotAsked
-from seqrank.labelling.human import Hub
+from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
+from seqrank.labelling.human import Hub, PageSettings
 from seqrank.labelling.jsonl import export_lines
 
 STATIC = resources.files("seqrank.labelling") / "static"
@@ -49,9 +49,25 @@ class SurveyIn(BaseModel):
 
 def create_app(hub: Hub) -> FastAPI:
     app = FastAPI(title="seqrank labelling", docs_url=None, redoc_url=None, openapi_url=None)
-    db, settings = hub.db, hub.settings
+    app.middleware("http")(_token_check(hub.settings))
 
-    @app.middleware("http")
+    @app.get("/", response_class=HTMLResponse)
+    def index() -> str:
+        return (STATIC / "index.html").read_text()
+
+    app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
+    app.include_router(_question_routes(hub))
+    app.include_router(_clip_routes(hub))
+    app.include_router(_survey_routes(hub))
+    app.include_router(_export_routes(hub.db))
+    return app
+
+
+def _token_check(
+    settings: PageSettings,
+) -> Callable[[Request, Callable[[Request], Awaitable[Response]]], Awaitable[Response]]:
+    """A middleware that turns away requests without the access token (when one is set)."""
+
     async def require_token(
         request: Request, call_next: Callable[[Request], Awaitable[Response]]
     ) -> Response:
@@ -70,16 +86,18 @@ def create_app(hub: Hub) -> FastAPI:
                 status_code=401,
             )
         response = await call_next(request)
+        # the page's own requests (clips, answers) then carry the token without a query
         response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
         return response
 
-    @app.get("/", response_class=HTMLResponse)
-    def index() -> str:
-        return (STATIC / "index.html").read_text()
+    return require_token
 
-    app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
 
-    @app.get("/api/state")
+def _question_routes(hub: Hub) -> APIRouter:
+    router = APIRouter()
+    db, settings = hub.db, hub.settings
+
+    @router.get("/api/state")
     def state() -> dict[str, object]:
         common: dict[str, object] = {
             "run": hub.run,
@@ -91,36 +109,13 @@ def create_app(hub: Hub) -> FastAPI:
         }
         question = db.pending_question()
         if question is not None:
-            session = db.session_row(question.run, question.session)
-            scheme = session["scheme"] if session is not None else hub.scheme
-            questions = session["questions"] if session is not None else 0
-
-            def side(segment: int) -> dict[str, object]:
-                role = None
-                if question.defender is not None:
-                    role = "defender" if segment == question.defender else "challenger"
-                return {"segment": segment, "clip": f"/api/clips/{segment}.mp4", "role": role}
-
-            return {
-                **common,
-                "status": "question",
-                "run": question.run,
-                "scheme": scheme,
-                "question": {
-                    "id": question.id,
-                    "session": question.session + 1,
-                    "index": question.index + 1,
-                    "questions": questions,
-                    "left": side(question.left),
-                    "right": side(question.right),
-                },
-            }
+            return {**common, **_question_state(hub, question)}
         if hub.phase == "survey" and hub.survey_run is not None:
             return {**common, "status": "survey", "survey_run": hub.survey_run}
         status = "done" if hub.phase == "done" else "waiting"
         return {**common, "status": status}
 
-    @app.post("/api/answer")
+    @router.post("/api/answer")
     def answer(body: AnswerIn) -> dict[str, object]:
         question = db.question(body.question_id)
         if question is None:
@@ -138,9 +133,43 @@ def create_app(hub: Hub) -> FastAPI:
             "answer": stored.answer,
         }
 
-    @app.get("/api/clips/{segment_id}.mp4")
+    return router
+
+
+def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:
+    """The `/api/state` fields of a question waiting for its answer."""
+    # the scheme and length of the question's own session, which may not be the hub's run
+    session = hub.db.session_row(question.run, question.session)
+    scheme = session["scheme"] if session is not None else hub.scheme
+    questions = session["questions"] if session is not None else 0
+    return {
+        "status": "question",
+        "run": question.run,
+        "scheme": scheme,
+        "question": {
+            "id": question.id,
+            "session": question.session + 1,
+            "index": question.index + 1,
+            "questions": questions,
+            "left": _side(question, question.left),
+            "right": _side(question, question.right),
+        },
+    }
+
+
+def _side(question: StoredQuestion, segment: int) -> dict[str, object]:
+    role = None
+    if question.defender is not None:
+        role = "defender" if segment == question.defender else "challenger"
+    return {"segment": segment, "clip": f"/api/clips/{segment}.mp4", "role": role}
+
+
+def _clip_routes(hub: Hub) -> APIRouter:
+    router = APIRouter()
+
+    @router.get("/api/clips/{segment_id}.mp4")
     def clip(segment_id: int) -> FileResponse:
-        row = db.segment(segment_id)
+        row = hub.db.segment(segment_id)
         if row is None:
             raise HTTPException(404, f"unknown segment {segment_id}")
         if row["states"] is None:
@@ -152,19 +181,32 @@ def create_app(hub: Hub) -> FastAPI:
         path = hub.renderer.clip(segment_id)
         return FileResponse(path, media_type="video/mp4")
 
-    @app.post("/api/survey")
+    return router
+
+
+def _survey_routes(hub: Hub) -> APIRouter:
+    router = APIRouter()
+
+    @router.post("/api/survey")
     def survey(body: SurveyIn) -> dict[str, object]:
-        stored = db.survey(body.run)
+        stored = hub.db.survey(body.run)
+        # a stored survey is answered again as a duplicate even after its phase has passed
         if stored is None and (hub.phase != "survey" or hub.survey_run != body.run):
             raise HTTPException(409, f"no survey is open for run {body.run!r}")
         scheme = hub.scheme if stored is None else stored["scheme"]
-        created = db.record_survey(
-            body.run, scheme, body.satisfaction, body.criteria, settings.annotator
+        created = hub.db.record_survey(
+            body.run, scheme, body.satisfaction, body.criteria, hub.settings.annotator
         )
         return {"accepted": True, "duplicate": not created}
 
-    @app.get("/api/labels.jsonl", response_class=PlainTextResponse)
+    return router
+
+
+def _export_routes(db: LabelDB) -> APIRouter:
+    router = APIRouter()
+
+    @router.get("/api/labels.jsonl", response_class=PlainTextResponse)
     def labels() -> str:
         return "".join(line + "\n" for line in export_lines(db))
 
-    return app
+    return router

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 from collections import defaultdict
+from collections.abc import Mapping
 from itertools import permutations
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ import numpy as np
 
 from seqrank.report.collect import RunResult, collect_runs
 from seqrank.report.stats import (
+    Scores,
     iqm,
     pooled_iqm,
     probability_of_improvement,
@@ -26,6 +28,8 @@ from seqrank.report.stats import (
 )
 
 SCHEME_ORDER = ("pairwise", "sequential", "root", "ranked")
+Cells = dict[tuple[str, str], list[RunResult]]  # (task, method) -> its runs with a score
+Normalized = Mapping[str, Scores]  # method -> task -> normalized scores
 
 
 def method_names(runs: list[RunResult]) -> dict[Path, str]:
@@ -60,10 +64,42 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
     rng = np.random.default_rng(seed)
     tasks = sorted({r.task for r in runs})
     methods = _order(set(names.values()))
-    cells: dict[tuple[str, str], list[RunResult]] = defaultdict(list)
+    cells: Cells = defaultdict(list)
     for run in runs:
         if run.score is not None:
             cells[(run.task, names[run.path])].append(run)
+    table = _task_table(cells, tasks, methods, repetitions, rng)
+    normalized = {
+        method: {
+            task: np.array([r.normalized for r in cells[(task, method)]], np.float64)
+            for task in tasks
+            if cells.get((task, method))
+        }
+        for method in methods
+    }
+    return {
+        "folder": str(folder),
+        "runs": len(runs),
+        "finished": sum(r.finished for r in runs),
+        "tasks": tasks,
+        "methods": methods,
+        "table": table,
+        "aggregate_iqm": _aggregate(normalized, methods, repetitions, rng),
+        "probability_of_improvement": _improvement(normalized, methods, repetitions, rng),
+        "bootstrap": {"repetitions": repetitions, "seed": seed},
+        "_runs": runs,
+        "_names": names,
+    }
+
+
+def _task_table(
+    cells: Cells,
+    tasks: list[str],
+    methods: list[str],
+    repetitions: int,
+    rng: np.random.Generator,
+) -> list[dict[str, Any]]:
+    """One row per task and method with runs: mean, std and IQM with its bootstrap CI."""
     table = []
     for task in tasks:
         for method in methods:
@@ -87,14 +123,13 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
                     "steps": min(r.steps for r in members),
                 }
             )
-    normalized = {
-        method: {
-            task: np.array([r.normalized for r in cells[(task, method)]], np.float64)
-            for task in tasks
-            if cells.get((task, method))
-        }
-        for method in methods
-    }
+    return table
+
+
+def _aggregate(
+    normalized: Normalized, methods: list[str], repetitions: int, rng: np.random.Generator
+) -> list[dict[str, Any]]:
+    """Per method, the IQM of normalized scores pooled over tasks, with its bootstrap CI."""
     aggregate = []
     for method in methods:
         if not normalized[method]:
@@ -103,6 +138,13 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
         aggregate.append(
             {"method": method, "iqm": pooled_iqm(normalized[method]), "low": low, "high": high}
         )
+    return aggregate
+
+
+def _improvement(
+    normalized: Normalized, methods: list[str], repetitions: int, rng: np.random.Generator
+) -> list[dict[str, Any]]:
+    """P(X > Y) for every ordered pair of methods sharing a task, with its bootstrap CI."""
     improvement = []
     for a, b in permutations(methods, 2):
         x, y = normalized[a], normalized[b]
@@ -112,19 +154,7 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
         improvement.append(
             {"x": a, "y": b, "p": probability_of_improvement(x, y), "low": low, "high": high}
         )
-    return {
-        "folder": str(folder),
-        "runs": len(runs),
-        "finished": sum(r.finished for r in runs),
-        "tasks": tasks,
-        "methods": methods,
-        "table": table,
-        "aggregate_iqm": aggregate,
-        "probability_of_improvement": improvement,
-        "bootstrap": {"repetitions": repetitions, "seed": seed},
-        "_runs": runs,
-        "_names": names,
-    }
+    return improvement
 
 
 def iqm_of(scores: dict[str, np.ndarray]) -> float:

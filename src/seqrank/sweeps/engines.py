@@ -28,8 +28,8 @@ def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]
     import torch
 
     from seqrank.config import TrainConfig
-    from seqrank.training.loop import Trainer, open_trainer
     from seqrank.training.runs import RunDir
+    from seqrank.training.trainer import Trainer, open_trainer
 
     torch.set_num_threads(threads)
     directory = Path(path)

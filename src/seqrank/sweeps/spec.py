@@ -107,7 +107,7 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
         raise ValueError(f"{source}: task_overrides.{strays[0]} names a task not in tasks")
     variants = _variants(data.get("variants", []), source)
     if scale == "auto":
-        from seqrank.training.loop import resolve_device
+        from seqrank.training.runtime import resolve_device
 
         scale = "paper" if resolve_device(device).type == "cuda" else "small"
     runs = []
@@ -145,9 +145,9 @@ def _check_path(config: TrainConfig, device: str) -> None:
     """A precision that the run's path does not offer on `device` (ValueError)."""
     import torch
 
-    from seqrank.training.loop import resolve_path_and_precision
+    from seqrank.training.runtime import config_runtime
 
-    resolve_path_and_precision(config, torch.device(device))
+    config_runtime(config, torch.device(device))
 
 
 def _names(data: dict[str, Any], key: str, source: str) -> list[str]:

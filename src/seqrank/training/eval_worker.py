@@ -18,13 +18,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.agents.sac import Actor
+from seqrank.agents.networks import Actor
 from seqrank.training.evaluation import PolicyScore, evaluate_policy
 
 _WORKER: dict[str, Any] = {}
 
 
-class _GreedyActor:
+class GreedyActor:
     """`evaluate_policy`'s agent: tanh of the policy mean, on the worker's CPU."""
 
     def __init__(self, actor: Actor):
@@ -47,7 +47,7 @@ def _start(task: str, seed: int, dims: tuple[int, int, int, int]) -> None:
 def _evaluate(actor_state: dict[str, torch.Tensor], seeds: list[int]) -> PolicyScore:
     actor: Actor = _WORKER["actor"]
     actor.load_state_dict(actor_state)
-    return evaluate_policy(_GreedyActor(actor), _WORKER["env"], seeds, torch.Generator())  # type: ignore[arg-type]
+    return evaluate_policy(GreedyActor(actor), _WORKER["env"], seeds, torch.Generator())
 
 
 @dataclass

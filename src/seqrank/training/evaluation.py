@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from seqrank.agents.sac import SAC
+from seqrank.agents.protocol import Policy
 from seqrank.buffer import ReplayBuffer
 from seqrank.envs import SimEnv
 from seqrank.episodes import EpisodeStore
@@ -23,7 +23,7 @@ class PolicyScore:
 
 
 def evaluate_policy(
-    agent: SAC, env: SimEnv, seeds: list[int], generator: torch.Generator
+    agent: Policy, env: SimEnv, seeds: list[int], generator: torch.Generator
 ) -> PolicyScore:
     """One episode per seed with the deterministic action (tanh of the mean)."""
     returns, successes = [], []

@@ -100,6 +100,10 @@ class RunDir:
         state: dict[str, Any] = torch.load(self.checkpoint_path, weights_only=False)
         return state
 
+    def read_summary(self) -> dict[str, Any]:
+        result: dict[str, Any] = json.loads((self.path / "summary.json").read_text())
+        return result
+
     def write_summary(self, summary: dict[str, Any]) -> None:
         _write_json(self.path / "summary.json", summary)
 

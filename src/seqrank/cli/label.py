@@ -1,4 +1,4 @@
-"""`seqrank label online|offline|study`, `seqrank labels export|import`, `seqrank study-report`."""
+"""`seqrank label online|offline|study`: the labelling page, with or without training."""
 
 from __future__ import annotations
 
@@ -9,14 +9,15 @@ from typing import Any
 
 from rich.console import Console
 
+from seqrank.cli.options import Parser, add_run_options, positive
+from seqrank.cli.train import new_run, prepare_run
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
-from seqrank.train_cli import add_run_options, prepare_run
 
 SERVER_HELP = "labelling page options"
 
 
-def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+def add_parser(commands: Any) -> None:
     label = commands.add_parser(
         "label",
         help="the labelling page: a person answers the questions (online, offline, study)",
@@ -24,7 +25,14 @@ def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]
         "Answers are committed to labels.sqlite in the output directory before the page hears "
         "back; rerunning the same command resumes at the first unanswered question.",
     )
-    modes = label.add_subparsers(dest="mode", required=True, parser_class=parser_class)
+    modes = label.add_subparsers(dest="mode", required=True, parser_class=Parser)
+    _add_online(modes)
+    _add_offline(modes)
+    _add_study(modes)
+    label.set_defaults(handler=run)
+
+
+def _add_online(modes: Any) -> None:
     online = modes.add_parser(
         "online",
         help="train an agent whose teacher is the person at the page",
@@ -39,6 +47,8 @@ def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]
     )
     _server_options(online)
 
+
+def _add_offline(modes: Any) -> None:
     offline = modes.add_parser(
         "offline",
         help="label segments of saved episodes, without training",
@@ -49,16 +59,18 @@ def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]
     source.add_argument("--from", dest="policy_run", type=Path, help="a run directory to roll out")
     source.add_argument("--task", help="a task acted on at random, e.g. dmc:walker_walk")
     offline.add_argument("--scheme", choices=tuple(SCHEMES), default="sequential")
-    offline.add_argument("--questions", type=_positive, default=10, help="per session (10)")
-    offline.add_argument("--sessions", type=_positive, default=1, help="(1)")
+    offline.add_argument("--questions", type=positive, default=10, help="per session (10)")
+    offline.add_argument("--sessions", type=positive, default=1, help="(1)")
     offline.add_argument(
-        "--segment-length", type=_positive, help="steps (the task's: 50, block:place 30)"
+        "--segment-length", type=positive, help="steps (the task's: 50, block:place 30)"
     )
-    offline.add_argument("--episodes", type=_positive, default=4, help="episodes rolled out (4)")
+    offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
     offline.add_argument("--seed", type=int, default=0)
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
     _server_options(offline)
 
+
+def _add_study(modes: Any) -> None:
     study = modes.add_parser(
         "study",
         help="the user-study protocol (D.7): one participant, three methods, surveys",
@@ -71,22 +83,6 @@ def add_label_parsers(commands: Any, parser_class: type[argparse.ArgumentParser]
     study.add_argument("--methods", default=",".join(("pairwise", "sequential", "root")))
     add_run_options(study)
     _server_options(study)
-
-    labels = commands.add_parser("labels", help="export or import labels as JSONL")
-    actions = labels.add_subparsers(dest="action", required=True, parser_class=parser_class)
-    export = actions.add_parser("export", help="write a labelling directory's answers as JSONL")
-    export.add_argument("directory", type=Path, help="holds labels.sqlite")
-    export.add_argument("-o", "--output", type=Path, required=True)
-    load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
-    load.add_argument("file", type=Path)
-    load.add_argument("directory", type=Path)
-
-    report = commands.add_parser(
-        "study-report",
-        help="satisfaction and reward per method over a study's participants, paired t-tests",
-    )
-    report.add_argument("study_dir", type=Path)
-    report.add_argument("--json", type=Path, help="also write the numbers as JSON here")
 
 
 def _server_options(parser: argparse.ArgumentParser) -> None:
@@ -102,21 +98,11 @@ def _server_options(parser: argparse.ArgumentParser) -> None:
         "--countdown", type=float, default=3.0, help="seconds per question (3, as D.7; 0: none)"
     )
     group.add_argument("--annotator", default="anonymous", help="stored with every answer")
-    group.add_argument("--fps", type=_positive, default=30, help="clip frame rate (30)")
-    group.add_argument("--size", type=_positive, default=128, help="clip width and height (128)")
+    group.add_argument("--fps", type=positive, default=30, help="clip frame rate (30)")
+    group.add_argument("--size", type=positive, default=128, help="clip width and height (128)")
     group.add_argument(
         "--keep-serving", action="store_true", help="keep the page up after the last answer"
     )
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
-    return value
 
 
 def _server(args: argparse.Namespace) -> Any:
@@ -129,7 +115,7 @@ def _server(args: argparse.Namespace) -> Any:
     )
 
 
-def run_label(args: argparse.Namespace, out: Console, err: Console) -> int:
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     def say(text: str) -> None:
         err.print(text, highlight=False)
 
@@ -209,7 +195,7 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
 def _human_trainer(hub: Any, run_name: str, wait: bool, say: Any) -> Any:
     from seqrank.labelling.app import record_task, training_progress
     from seqrank.labelling.human import HumanSource
-    from seqrank.training.loop import Trainer
+    from seqrank.training.trainer import Trainer
 
     def build(config: Any, run: Any) -> Any:
         trainer = Trainer(
@@ -237,8 +223,8 @@ def _human_overrides(args: argparse.Namespace) -> None:
 
 def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     from seqrank.labelling.app import open_hub, train_with_person
-    from seqrank.training.loop import resolve_device
     from seqrank.training.runs import RunDir
+    from seqrank.training.runtime import resolve_device
 
     _human_overrides(args)
     holder: dict[str, Any] = {}
@@ -263,51 +249,25 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
 
 def _study(args: argparse.Namespace, say: Any) -> int:
     from seqrank.config import resolve_config
-    from seqrank.labelling.app import open_hub, study_order, train_with_person, wait_survey
-    from seqrank.training.loop import open_trainer, resolve_device
-    from seqrank.training.runs import RunDir
+    from seqrank.labelling.app import open_hub, study_order, wait_survey
+    from seqrank.training.runtime import resolve_device
 
-    if hasattr(args, "resume") or hasattr(args, "out") or hasattr(args, "scheme"):
-        raise ValueError(
-            "study runs live in --study-dir/<participant>/<method>: drop --resume/--out/--scheme "
-            "(rerun the same command to continue)"
-        )
-    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    unknown = [m for m in methods if m not in SCHEMES] or ([] if methods else ["(none)"])
-    if unknown or len(set(methods)) != len(methods):
-        raise ValueError(
-            f"--methods {args.methods!r}: give distinct schemes from {', '.join(SCHEMES)}"
-        )
+    methods = _study_methods(args)
     _human_overrides(args)
     participant_dir = args.study_dir / args.participant
     order = study_order(args.study_dir, args.participant, methods)
-    from dataclasses import fields
-
-    from seqrank.config import TrainConfig
-
-    given = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
-    device = resolve_device(given.get("device", "auto"))
-    scale = getattr(args, "scale", "auto")
-    scale = ("paper" if device.type == "cuda" else "small") if scale == "auto" else scale
-    task = given.pop("task", TrainConfig.task)
-    hub = open_hub(participant_dir, task, _server(args))
+    new = new_run(args, resolve_device)
+    hub = open_hub(participant_dir, new.task, _server(args))
     hub.sessions_total = 0
     server = _serve(hub, args, say)
     say(f"participant {args.participant}: methods in the order {', '.join(order)}")
     try:
         for method in order:
             run_path = participant_dir / method
-            config = resolve_config(task, scale, {**given, "scheme": method})
-            if not (run_path / "summary.json").exists():
-                if (run_path / "config.json").exists():
-                    run = RunDir.open(run_path)
-                    config = run.read_config()
-                else:
-                    run = RunDir.create(run_path, config, str(device))
-                trainer, _ = open_trainer(_human_trainer(hub, method, True, say), config, run)
-                say(f"method {method}: training in {run_path}")
-                if train_with_person(trainer, hub, say) is None:
-                    break
+            config = resolve_config(new.task, new.scale, {**new.given, "scheme": method})
+            done = (run_path / "summary.json").exists()
+            if not done and not _study_train(hub, config, str(new.device), run_path, say):
+                break
             if not wait_survey(hub, method, method):
                 break
         else:
@@ -319,37 +279,33 @@ def _study(args: argparse.Namespace, say: Any) -> int:
     return 0
 
 
-def run_labels(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.labelling.db import DB_NAME, LabelDB
-    from seqrank.labelling.jsonl import export_file, import_file
-
-    db_path = args.directory / DB_NAME
-    try:
-        if args.action == "export":
-            if not db_path.exists():
-                raise ValueError(f"{args.directory} holds no {DB_NAME}")
-            count = export_file(LabelDB(db_path), args.output)
-            out.print(f"{count} answers written to {args.output}")
-        else:
-            count = import_file(LabelDB(db_path), args.file)
-            out.print(f"{count} answers added to {db_path}")
-    except ValueError as problem:
-        raise UsageError(str(problem)) from None
-    return 0
+def _study_methods(args: argparse.Namespace) -> tuple[str, ...]:
+    if hasattr(args, "resume") or hasattr(args, "out") or hasattr(args, "scheme"):
+        raise ValueError(
+            "study runs live in --study-dir/<participant>/<method>: drop --resume/--out/--scheme "
+            "(rerun the same command to continue)"
+        )
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    unknown = [m for m in methods if m not in SCHEMES] or ([] if methods else ["(none)"])
+    if unknown or len(set(methods)) != len(methods):
+        raise ValueError(
+            f"--methods {args.methods!r}: give distinct schemes from {', '.join(SCHEMES)}"
+        )
+    return methods
 
 
-def run_study_report(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.labelling.study import format_report, study_report
+def _study_train(hub: Any, config: Any, device: str, run_path: Path, say: Any) -> bool:
+    """Train (or resume) one method's run; False when the person stopped it."""
+    from seqrank.labelling.app import train_with_person
+    from seqrank.training.runs import RunDir
+    from seqrank.training.trainer import open_trainer
 
-    try:
-        report = study_report(args.study_dir)
-    except ValueError as problem:
-        raise UsageError(str(problem)) from None
-    text = format_report(report)
-    out.print(text, highlight=False, markup=False)
-    (args.study_dir / "study-report.md").write_text(text)
-    if args.json:
-        import json
-
-        args.json.write_text(json.dumps(report, indent=2))
-    return 0
+    if (run_path / "config.json").exists():
+        run = RunDir.open(run_path)
+        config = run.read_config()
+    else:
+        run = RunDir.create(run_path, config, device)
+    method = run_path.name  # runs live in <study-dir>/<participant>/<method>
+    trainer, _ = open_trainer(_human_trainer(hub, method, True, say), config, run)
+    say(f"method {method}: training in {run_path}")
+    return train_with_person(trainer, hub, say) is not None

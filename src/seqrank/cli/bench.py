@@ -7,19 +7,21 @@ import json
 import os
 import platform
 import shlex
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 
-from seqrank.config import PRECISIONS, SCALES
+from seqrank.cli.options import field_type, split_names
+from seqrank.config import PRECISIONS, SCALES, TrainConfig
 from seqrank.console_tables import progress_bar
 from seqrank.errors import UsageError
 
 FAST_PRECISIONS = [p for p in PRECISIONS if p != "auto"]
 
 
-def add_bench_parser(commands: Any) -> None:
+def add_parser(commands: Any) -> None:
     bench = commands.add_parser(
         "bench",
         help="time the reference and fast training paths side by side",
@@ -62,12 +64,13 @@ def add_bench_parser(commands: Any) -> None:
     bench.add_argument(
         "--out", type=Path, help="output path without suffix (default: results/bench-<device>)"
     )
+    bench.set_defaults(handler=run)
 
 
-def run_bench_command(args: argparse.Namespace, out: Console, err: Console) -> int:
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.bench.report import format_markdown
     from seqrank.bench.suite import BenchPlan, run_bench
-    from seqrank.training.loop import resolve_device
+    from seqrank.training.runtime import resolve_device
 
     for name in ("repeats", "updates", "reward_epochs"):
         if getattr(args, name) < 1:
@@ -100,13 +103,7 @@ def run_bench_command(args: argparse.Namespace, out: Console, err: Console) -> i
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
     """FIELD=VALUE pairs typed like the TrainConfig field they name."""
-    from dataclasses import fields
-
-    from seqrank.config import TrainConfig
-
-    types = {
-        f.name: {"int": int, "float": float, "str": str}[str(f.type)] for f in fields(TrainConfig)
-    }
+    types = {f.name: field_type(f) for f in fields(TrainConfig)}
     overrides: dict[str, Any] = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -126,11 +123,4 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
 def _precisions(text: str | None, device_type: str) -> list[str]:
     if text is None:
         return ["tf32", "bf16", "fp32"] if device_type == "cuda" else ["fp32"]
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in FAST_PRECISIONS]
-    if unknown or not names:
-        raise ValueError(
-            f"unknown precision {', '.join(map(repr, unknown)) or repr(text)}; accepted: "
-            f"{', '.join(FAST_PRECISIONS)} (comma-separated)"
-        )
-    return list(dict.fromkeys(names))
+    return split_names(text, FAST_PRECISIONS, "precision")

@@ -4,24 +4,28 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import fields
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from seqrank.config import SCALES, TrainConfig, resolve_config
+from seqrank.cli.options import add_run_options, given_settings
+from seqrank.config import TrainConfig, resolve_config
 from seqrank.errors import UsageError
+from seqrank.scale import resolve_scale
 from seqrank.training.runs import RunDir
+
+if TYPE_CHECKING:
+    import torch
 
 # Options that name the run rather than tune it.
 IDENTITY = ("task", "scheme", "teacher", "backbone", "seed", "device")
-FIELD_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
 
 
-def add_train_parser(commands: Any) -> None:
+def add_parser(commands: Any) -> None:
     train = commands.add_parser(
         "train",
         help="train an agent from preferences (PEBBLE or MRN)",
@@ -31,95 +35,77 @@ def add_train_parser(commands: Any) -> None:
     )
     add_run_options(train)
     train.add_argument("--quiet", action="store_true", help="no progress bar")
+    train.set_defaults(handler=run)
 
 
-def add_run_options(parser: argparse.ArgumentParser) -> None:
-    """--scale, --out, --resume and one option per TrainConfig field."""
-    parser.add_argument(
-        "--scale",
-        choices=("auto", *SCALES),
-        default=argparse.SUPPRESS,
-        help="paper: Table 2 sizes; small: a 2-core CPU preset; auto (default): paper on "
-        "CUDA, small on CPU",
-    )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=argparse.SUPPRESS,
-        help="run directory (default: seqrank-out/runs/<task>_<scheme>_...)",
-    )
-    parser.add_argument(
-        "--resume",
-        type=Path,
-        metavar="RUN_DIR",
-        default=argparse.SUPPRESS,
-        help="continue a killed run from its last checkpoint",
-    )
-    for f in fields(TrainConfig):
-        if f.name == "scale":
-            continue
-        parser.add_argument(
-            f"--{f.name.replace('_', '-')}",
-            type=FIELD_TYPES[str(f.type)],
-            default=argparse.SUPPRESS,
-            metavar=str(f.type).upper(),
-            help=f"default: {f.default} (or the preset's)",
-        )
-
-
-def run_train(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.training.loop import (  # torch loads slowly: only when training
-        Trainer,
-        resolve_device,
-    )
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.training.runtime import resolve_device
+    from seqrank.training.trainer import Trainer
 
     try:
-        trainer, config, run = prepare_run(args, err, Trainer, resolve_device)
+        trainer, config, run_dir = prepare_run(args, err, Trainer, resolve_device)
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
         raise UsageError(str(problem)) from None
     summary = _train_with_progress(trainer, config, err, args.quiet)
-    _print_summary(out, summary, run)
+    _print_summary(out, summary, run_dir)
     return 0
+
+
+@dataclass(frozen=True)
+class NewRun:
+    """A new run's settings: options given (less the task), device, preset scale and task."""
+
+    given: dict[str, Any]
+    device: torch.device
+    scale: str
+    task: str
+
+
+def new_run(args: argparse.Namespace, resolve_device: Any) -> NewRun:
+    given = given_settings(args)
+    device = resolve_device(given.get("device", "auto"))
+    scale = resolve_scale(getattr(args, "scale", "auto"), device)
+    return NewRun(given, device, scale, given.pop("task", TrainConfig.task))
 
 
 def prepare_run(
     args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any
 ) -> Any:
     """Build the trainer of a new or resumed run; bad input raises ValueError."""
-    given = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
     if hasattr(args, "resume"):
-        if given or hasattr(args, "out") or hasattr(args, "scale"):
-            changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale"
-            raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
-        run = RunDir.open(args.resume)
-        config = run.read_config()
-        from seqrank.training.loop import open_trainer
+        return _resume_run(args, err, trainer_cls)
+    new = new_run(args, resolve_device)
+    config = resolve_config(new.task, new.scale, new.given)
+    from seqrank.training.runtime import config_runtime
 
-        trainer, state = open_trainer(trainer_cls, config, run)
-        if state is None:  # killed before its first checkpoint: start over, dropping what it logged
-            run.truncate_metrics(0)
-        err.print(f"resuming {run.path} at step {trainer.counters.step}")
-        return trainer, config, run
-    scale = getattr(args, "scale", "auto")
-    device = resolve_device(given.get("device", "auto"))
-    if scale == "auto":
-        scale = "paper" if device.type == "cuda" else "small"
-    task = given.pop("task", TrainConfig.task)
-    config = resolve_config(task, scale, given)
-    from seqrank.training.loop import resolve_path_and_precision
-
-    resolve_path_and_precision(config, device)  # before anything is written
+    config_runtime(config, new.device)  # before anything is written
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
-    run = RunDir.create(path, config, str(device))
+    run = RunDir.create(path, config, str(new.device))
     trainer = trainer_cls(config, run)
-    err.print(f"run directory: {run.path} ({scale} preset, device {device})")
+    err.print(f"run directory: {run.path} ({new.scale} preset, device {new.device})")
+    return trainer, config, run
+
+
+def _resume_run(args: argparse.Namespace, err: Console, trainer_cls: Any) -> Any:
+    given = given_settings(args)
+    if given or hasattr(args, "out") or hasattr(args, "scale"):
+        changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale"
+        raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
+    run = RunDir.open(args.resume)
+    config = run.read_config()
+    from seqrank.training.trainer import open_trainer
+
+    trainer, state = open_trainer(trainer_cls, config, run)
+    if state is None:  # killed before its first checkpoint: start over, dropping what it logged
+        run.truncate_metrics(0)
+    err.print(f"resuming {run.path} at step {trainer.counters.step}")
     return trainer, config, run
 
 
 def _run_name(config: TrainConfig) -> str:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     task = config.task.replace(":", "-")
-    teacher = "replay" if config.teacher.startswith("replay:") else config.teacher
+    teacher = config.teacher_spec.short_name
     return f"{task}_{config.scheme}_{teacher}_{config.backbone}_seed{config.seed}_{stamp}"
 
 

@@ -1,4 +1,4 @@
-"""`seqrank sweep SPEC` and `seqrank report RUNS_DIR`."""
+"""`seqrank sweep SPEC`: a grid of training runs from a TOML file, run locally or on Ray."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from seqrank.errors import UsageError
 
 
-def add_sweep_parsers(commands: Any) -> None:
+def add_parser(commands: Any) -> None:
     sweep = commands.add_parser(
         "sweep",
         help="run a grid of training runs from a TOML sweep file (local processes or Ray)",
@@ -39,22 +39,10 @@ def add_sweep_parsers(commands: Any) -> None:
         help="Ray: GPU fraction per run (0; 0.25 = 4 per GPU)",
     )
     sweep.add_argument("--dry-run", action="store_true", help="list the runs and stop")
-
-    report = commands.add_parser(
-        "report",
-        help="tables (mean ± std, IQM with CIs, probability of improvement) and plots of runs",
-        description="Read every run directory under RUNS_DIR (finished or not) and write "
-        "report.md, report.csv, report.json and PNG plots.",
-    )
-    report.add_argument("runs_dir", type=Path)
-    report.add_argument("--out", type=Path, help="(default: RUNS_DIR/report)")
-    report.add_argument("--bootstrap", type=int, default=2000, help="resamples (2000)")
-    report.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
-    report.add_argument("--no-plots", action="store_true")
+    sweep.set_defaults(handler=run)
 
 
-def run_sweep_command(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.sweeps.engines import LocalBackend, RayBackend, run_sweep
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.sweeps.spec import load_sweep
 
     if args.workers < 1:
@@ -69,18 +57,37 @@ def run_sweep_command(args: argparse.Namespace, out: Console, err: Console) -> i
         f"sweep {sweep.name}: {len(sweep.runs)} runs in {sweep.out / 'runs'}", highlight=False
     )
     if args.dry_run:
-        for run in sweep.runs:
-            out.print(run.name, highlight=False)
+        for planned in sweep.runs:
+            out.print(planned.name, highlight=False)
         return 0
-    if args.engine == "ray":
-        try:
-            backend: Any = RayBackend(
-                args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run, None
-            )
-        except ImportError:
-            raise UsageError("--engine ray needs Ray: pip install 'seqrank[ray]'") from None
-    else:
-        backend = LocalBackend(args.workers)
+    status = _run_with_progress(sweep, _backend(args), err)
+    failed = [r for r in status.runs.values() if r.state == "failed"]
+    out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
+    for failure in failed:
+        out.print(
+            f"failed after {failure.attempts} attempts: {failure.name}: {failure.error}",
+            highlight=False,
+        )
+    return 1 if failed else 0
+
+
+def _backend(args: argparse.Namespace) -> Any:
+    from seqrank.sweeps.engines import LocalBackend, RayBackend
+
+    if args.engine != "ray":
+        return LocalBackend(args.workers)
+    try:
+        return RayBackend(
+            args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run, None
+        )
+    except ImportError:
+        raise UsageError("--engine ray needs Ray: pip install 'seqrank[ray]'") from None
+
+
+def _run_with_progress(sweep: Any, backend: Any, err: Console) -> Any:
+    """Run the sweep with a bar of ended runs and a line per change of a run's state."""
+    from seqrank.sweeps.engines import run_sweep
+
     columns = (
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -101,27 +108,4 @@ def run_sweep_command(args: argparse.Namespace, out: Console, err: Console) -> i
                 detail = f" (retry {state.attempts - 1}: {state.error})"
             err.print(f"{state.name}: {state.state}{detail}", highlight=False)
 
-        status = run_sweep(sweep, backend, event)
-    failed = [r for r in status.runs.values() if r.state == "failed"]
-    out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
-    for failure in failed:
-        out.print(
-            f"failed after {failure.attempts} attempts: {failure.name}: {failure.error}",
-            highlight=False,
-        )
-    return 1 if failed else 0
-
-
-def run_report_command(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.report.report import build_report, format_markdown, write_report
-
-    if args.bootstrap < 100:
-        raise UsageError(f"--bootstrap {args.bootstrap}: use at least 100 resamples")
-    try:
-        report = build_report(args.runs_dir, args.bootstrap, args.seed)
-    except ValueError as problem:
-        raise UsageError(str(problem)) from None
-    written = write_report(report, args.out or args.runs_dir / "report", not args.no_plots)
-    out.print(format_markdown(report), markup=False, highlight=False)
-    err.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
-    return 0
+        return run_sweep(sweep, backend, event)

@@ -1,0 +1,71 @@
+"""The run's named choices as types, each checked once when a config is made.
+
+They are `StrEnum`s: a member equals its name as a string, so the saved config.json, the
+CLI and the sweep files keep using plain strings.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import TypeVar
+
+
+class Backbone(StrEnum):
+    PEBBLE = "pebble"
+    MRN = "mrn"
+
+
+class Scale(StrEnum):
+    PAPER = "paper"  # Table 2 sizes
+    SMALL = "small"  # a 2-core CPU preset
+
+
+class Device(StrEnum):
+    AUTO = "auto"  # CUDA when there is one
+    CPU = "cpu"
+    CUDA = "cuda"
+
+
+class TrainingPath(StrEnum):
+    AUTO = "auto"  # fast on CUDA for SAC tasks, reference elsewhere
+    REFERENCE = "reference"
+    FAST = "fast"
+
+
+class Precision(StrEnum):
+    AUTO = "auto"  # TF32 for the fast path on CUDA, fp32 elsewhere
+    FP32 = "fp32"
+    TF32 = "tf32"
+    BF16 = "bf16"
+
+
+class Selection(StrEnum):
+    UNIFORM = "uniform"
+    DISAGREEMENT = "disagreement"
+    ENTROPY = "entropy"
+
+
+Choice = TypeVar("Choice", bound=StrEnum)
+
+
+def parse_choice(kind: type[Choice], value: object, what: str) -> Choice:
+    """`value` as a member of `kind`; a ValueError names the bad value and what is accepted."""
+    try:
+        return kind(str(value)) if isinstance(value, str) else kind(value)  # type: ignore[arg-type]
+    except ValueError:
+        accepted = ", ".join(member.value for member in kind)
+        raise ValueError(f"unknown {what} {value!r}; accepted: {accepted}") from None
+
+
+def check_path(path: str, precision: str, discrete: bool) -> None:
+    """A ValueError for a path and precision that do not go together (whatever the device)."""
+    if discrete and path == TrainingPath.FAST:
+        raise ValueError(
+            "path 'fast' is SAC's fast update; block:place learns with DQN: use --path "
+            "reference or auto"
+        )
+    if path == TrainingPath.REFERENCE and precision not in (Precision.AUTO, Precision.FP32):
+        raise ValueError(
+            f"precision '{precision}' needs the fast path: the reference path is strict fp32 "
+            "(use --path fast, or --precision fp32)"
+        )

@@ -1,0 +1,120 @@
+"""What the sub-commands share: the parser class, value parsers and the training options."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from dataclasses import Field, fields
+from pathlib import Path
+from typing import Any, NoReturn
+
+from seqrank.config import SCALES, TrainConfig
+
+# TrainConfig field annotations (strings under `from __future__ import annotations`) -> types.
+FIELD_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
+
+
+class Parser(argparse.ArgumentParser):
+    """Bad input: one line naming the problem, exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _whole_number(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+
+
+def int_at_least(minimum: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        value = _whole_number(text)
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value} is too small; it must be >= {minimum}")
+        return value
+
+    return parse
+
+
+def positive(text: str) -> int:
+    value = _whole_number(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def probability(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"{value} must lie strictly between 0 and 1")
+    return value
+
+
+def split_names(text: str, accepted: Sequence[str], what: str) -> list[str]:
+    """Comma-separated names, each from `accepted`, without repeats; else ValueError."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in accepted]
+    if unknown or not names:
+        bad = ", ".join(repr(n) for n in unknown) or repr(text)
+        raise ValueError(f"unknown {what} {bad}; accepted: {', '.join(accepted)} (comma-separated)")
+    return list(dict.fromkeys(names))
+
+
+def names(accepted: Sequence[str], what: str) -> Callable[[str], list[str]]:
+    def parse(text: str) -> list[str]:
+        try:
+            return split_names(text, accepted, what)
+        except ValueError as problem:
+            raise argparse.ArgumentTypeError(str(problem)) from None
+
+    return parse
+
+
+def field_type(field: Field[Any]) -> type:
+    """A TrainConfig field's type on the command line: int, float, or else str (a named
+    choice such as the scheme is given as its name, and the config checks it)."""
+    return FIELD_TYPES.get(str(field.type), str)
+
+
+def given_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The TrainConfig fields given on the command line (the others are absent from args)."""
+    return {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
+
+
+def add_run_options(parser: argparse.ArgumentParser) -> None:
+    """--scale, --out, --resume and one option per TrainConfig field."""
+    parser.add_argument(
+        "--scale",
+        choices=("auto", *SCALES),
+        default=argparse.SUPPRESS,
+        help="paper: Table 2 sizes; small: a 2-core CPU preset; auto (default): paper on "
+        "CUDA, small on CPU",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=argparse.SUPPRESS,
+        help="run directory (default: seqrank-out/runs/<task>_<scheme>_...)",
+    )
+    parser.add_argument(
+        "--resume",
+        type=Path,
+        metavar="RUN_DIR",
+        default=argparse.SUPPRESS,
+        help="continue a killed run from its last checkpoint",
+    )
+    for f in fields(TrainConfig):
+        if f.name == "scale":
+            continue
+        parser.add_argument(
+            f"--{f.name.replace('_', '-')}",
+            type=field_type(f),
+            default=argparse.SUPPRESS,
+            metavar=field_type(f).__name__.upper(),
+            help=f"default: {f.default} (or the preset's)",
+        )

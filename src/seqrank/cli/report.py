@@ -1,0 +1,41 @@
+"""`seqrank report RUNS_DIR`: tables, statistics and plots over run directories."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from seqrank.errors import UsageError
+
+
+def add_parser(commands: Any) -> None:
+    report = commands.add_parser(
+        "report",
+        help="tables (mean ± std, IQM with CIs, probability of improvement) and plots of runs",
+        description="Read every run directory under RUNS_DIR (finished or not) and write "
+        "report.md, report.csv, report.json and PNG plots.",
+    )
+    report.add_argument("runs_dir", type=Path)
+    report.add_argument("--out", type=Path, help="(default: RUNS_DIR/report)")
+    report.add_argument("--bootstrap", type=int, default=2000, help="resamples (2000)")
+    report.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+    report.add_argument("--no-plots", action="store_true")
+    report.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.report.report import build_report, format_markdown, write_report
+
+    if args.bootstrap < 100:
+        raise UsageError(f"--bootstrap {args.bootstrap}: use at least 100 resamples")
+    try:
+        report = build_report(args.runs_dir, args.bootstrap, args.seed)
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
+    written = write_report(report, args.out or args.runs_dir / "report", not args.no_plots)
+    out.print(format_markdown(report), markup=False, highlight=False)
+    err.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
+    return 0

@@ -1,0 +1,99 @@
+"""`seqrank simulate`: feedback efficiency of every scheme under every teacher preset."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from seqrank import console_tables
+from seqrank.cli.options import int_at_least, names
+from seqrank.feedback.schemes import SCHEMES
+from seqrank.feedback.teachers import TEACHER_PRESETS
+from seqrank.simulate import simulate
+
+
+def add_parser(commands: Any) -> None:
+    sim = commands.add_parser(
+        "simulate", help="feedback efficiency of every scheme under every teacher preset"
+    )
+    sim.add_argument(
+        "--questions",
+        type=int_at_least(1),
+        default=50,
+        help="questions per session, N (default: %(default)s)",
+    )
+    sim.add_argument(
+        "--sessions",
+        type=int_at_least(2),
+        default=200,
+        help="sessions per scheme and teacher (default: %(default)s)",
+    )
+    sim.add_argument(
+        "--schemes",
+        type=names(list(SCHEMES), "scheme"),
+        default=list(SCHEMES),
+        help=f"comma-separated, from: {', '.join(SCHEMES)} (default: all)",
+    )
+    sim.add_argument(
+        "--teachers",
+        type=names(list(TEACHER_PRESETS), "teacher preset"),
+        default=list(TEACHER_PRESETS),
+        help=f"comma-separated, from: {', '.join(TEACHER_PRESETS)} (default: all)",
+    )
+    sim.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    sim.add_argument(
+        "--out",
+        type=Path,
+        default=Path("seqrank-out/simulate"),
+        help="folder for simulate.json and simulate.png (default: %(default)s)",
+    )
+    sim.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
+    sim.add_argument(
+        "--format",
+        choices=("table", "json"),
+        default="table",
+        help="what to print on stdout (the JSON file is written either way)",
+    )
+    sim.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    with console_tables.progress_bar(err) as progress:
+        task = progress.add_task("simulate", total=len(args.schemes) * len(args.teachers))
+        results = simulate(
+            args.schemes,
+            args.teachers,
+            args.questions,
+            args.sessions,
+            args.seed,
+            on_cell=lambda cell: progress.advance(task),
+        )
+    args.out.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "parameters": {
+            "questions": args.questions,
+            "sessions": args.sessions,
+            "schemes": args.schemes,
+            "teachers": args.teachers,
+            "seed": args.seed,
+        },
+        "results": [cell.as_dict() for cell in results],
+    }
+    json_path = args.out / "simulate.json"
+    json_path.write_text(json.dumps(payload, indent=2) + "\n")
+    png_path = None
+    if not args.no_plot:
+        from seqrank.plots import plot_simulation  # matplotlib is slow to import
+
+        png_path = args.out / "simulate.png"
+        plot_simulation(results, png_path)
+    if args.format == "json":
+        out.print_json(json.dumps(payload))
+    else:
+        console_tables.print_simulation(out, results)
+        err.print(f"wrote {json_path}" + (f" and {png_path}" if png_path else ""))
+    return 0

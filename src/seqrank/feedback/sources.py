@@ -1,0 +1,25 @@
+"""Who answers a run's questions, from its `--teacher` value: a scripted preset, labels
+recorded earlier (`replay:FILE`), or a person (`human`, served by `seqrank label online`)."""
+
+from __future__ import annotations
+
+from seqrank.feedback.session import FeedbackSource, ScriptedSource
+from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
+
+
+def make_source(teacher: str) -> FeedbackSource:
+    """The feedback source a `--teacher` value stands for; ValueError for `human` (it
+    needs the labelling page) and for values `parse_teacher` refuses."""
+    spec = parse_teacher(teacher)
+    if spec.kind == "replay":
+        from seqrank.feedback.replay import ReplaySource
+
+        assert spec.replay_file is not None
+        return ReplaySource.from_file(spec.replay_file)
+    if spec.kind == "human":
+        raise ValueError(
+            "teacher 'human' answers on the labelling page: start the run with "
+            "`seqrank label online ...` instead of `seqrank train`"
+        )
+    assert spec.scripted is not None
+    return ScriptedSource(ScriptedTeacher(spec.scripted))

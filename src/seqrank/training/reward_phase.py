@@ -1,0 +1,74 @@
+"""Reward learning during a run: fit the ensemble to every label so far, relabel the
+replay buffer with the new reward, and measure the reward on held-out segments."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from seqrank.buffer import ReplayBuffer, RewardFn
+from seqrank.episodes import EpisodeStore
+from seqrank.feedback.labels import LabelStore
+from seqrank.reward.model import RewardModel, RewardTrainResult
+from seqrank.training.evaluation import reward_quality
+
+
+@dataclass(frozen=True)
+class RewardSettings:
+    epochs: int
+    minibatch: int
+    stop_accuracy: float
+    heldout_pairs: int
+    segment_length: int
+    sync_every_step: bool  # read the loss back per minibatch (reference) or per epoch (fast)
+    relabel_chunk: int
+
+
+class RewardLearning:
+    def __init__(
+        self,
+        reward_model: RewardModel,
+        labels: LabelStore,
+        replay: ReplayBuffer,
+        episodes: EpisodeStore,
+        settings: RewardSettings,
+        generator: torch.Generator,
+    ):
+        self.model, self.labels, self.replay = reward_model, labels, replay
+        self.episodes, self.settings, self.generator = episodes, settings, generator
+
+    def reward_fn(self, trained: bool) -> RewardFn | None:
+        """The learned reward for new transitions; none before the first session."""
+        return self.model.reward if trained else None
+
+    def train(self) -> RewardTrainResult | None:
+        """Fit every label so far. Every answer may be a skip (B-Pref's skip teacher on
+        all-negative returns): then there is nothing to fit, and the model stays."""
+        if not len(self.labels):
+            return None
+        s = self.settings
+        segments, first, second, labels = self.labels.tensors(self.model.device)
+        return self.model.train(
+            segments,
+            first,
+            second,
+            labels,
+            s.epochs,
+            s.minibatch,
+            s.stop_accuracy,
+            self.generator,
+            sync_every_step=s.sync_every_step,
+        )
+
+    def relabel(self) -> None:
+        """Every stored transition gets the current model's reward."""
+        self.replay.relabel(self.model.reward, chunk=self.settings.relabel_chunk)
+
+    def quality(self, run_seed: int, session: int) -> dict[str, float]:
+        s = self.settings
+        rng = np.random.default_rng([run_seed, 2, session])
+        return reward_quality(
+            self.model, self.episodes, self.replay, s.heldout_pairs, s.segment_length, rng
+        )

@@ -1,0 +1,194 @@
+"""A training run's parts, assembled from its config; `Trainer.train()` runs the loop."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+
+from seqrank.agents.precision import matmul_precision
+from seqrank.buffer import ReplayBuffer
+from seqrank.config import TrainConfig
+from seqrank.envs import make_env
+from seqrank.episodes import EpisodeStore
+from seqrank.feedback.labels import LabelStore
+from seqrank.feedback.session import FeedbackSource, SessionPlan
+from seqrank.feedback.sources import make_source
+from seqrank.reward.model import RewardModel
+from seqrank.training.agent_factory import make_agent
+from seqrank.training.backbones import BACKBONES, UpdateParts
+from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
+from seqrank.training.collect import Collector
+from seqrank.training.evaluator import (
+    ActorShape,
+    BackgroundEvaluations,
+    Evaluations,
+    InlineEvaluations,
+)
+from seqrank.training.pretrain import EntropyPretraining
+from seqrank.training.reward_phase import RewardLearning, RewardSettings
+from seqrank.training.runs import RunDir
+from seqrank.training.runtime import resolve_runtime
+from seqrank.training.sessions import FeedbackSessions, Schedule
+from seqrank.training.state import Counters
+
+Progress = Callable[[int, dict[str, Any]], None]
+PhaseTimer = Callable[[str], contextlib.AbstractContextManager[None]]
+
+
+def _untimed(name: str) -> contextlib.AbstractContextManager[None]:
+    return contextlib.nullcontext()
+
+
+class Trainer:
+    def __init__(
+        self,
+        config: TrainConfig,
+        run: RunDir,
+        progress: Progress | None = None,
+        source: FeedbackSource | None = None,
+        wait_for_feedback: bool = True,
+    ):
+        """`wait_for_feedback=False` keeps training while a session after the first is being
+        answered (a person at the labelling page); its labels count once it is complete."""
+        self.config, self.run_dir, self.progress = config, run, progress
+        # a public hook around the `feedback_session` and `evaluation` phases (the benchmark
+        # times them with it)
+        self.phase_timer: PhaseTimer = _untimed
+        torch.manual_seed(config.seed)
+        self.env = make_env(config.task, config.seed)
+        self.eval_env = make_env(config.task, config.seed)
+        if config.first_session_step < self.env.episode_length:
+            raise ValueError(
+                f"the first feedback session (step {config.first_session_step}) comes before "
+                f"the first complete episode ({self.env.episode_length} steps); raise "
+                "--seed-steps or --unsup-steps"
+            )
+        self.runtime = runtime = resolve_runtime(
+            config.device, config.path, config.precision, self.env.discrete
+        )
+        self.fast, device = runtime.fast, runtime.device
+        obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
+        self.agent = make_agent(config, self.env, runtime)
+        self.reward_model = RewardModel(
+            config.reward_ensemble,
+            obs_dim + act_dim,
+            config.reward_hidden,
+            config.reward_layers,
+            config.reward_lr,
+            device,
+        )
+        # the reference path keeps the buffer on the host and copies each batch over
+        storage = device if runtime.fast else torch.device("cpu")
+        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage)
+        self.episodes = EpisodeStore(config.episodes_kept)
+        self.labels = LabelStore()
+        self.source = source if source is not None else make_source(config.teacher)
+        self.source.check_compatible(config.task, obs_dim, act_dim)
+        self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
+        self.generator = torch.Generator().manual_seed(config.seed)
+        self.counters = Counters()
+        self._assemble_phases(wait_for_feedback)
+
+    def _assemble_phases(self, wait_for_feedback: bool) -> None:
+        config, runtime, env = self.config, self.runtime, self.env
+        self.collector = Collector(
+            env,
+            self.agent,
+            self.replay,
+            self.episodes,
+            bool(config.record_states),
+            config.seed_steps,
+            self.rng,
+            self.generator,
+            lookahead=runtime.fast,
+            total_steps=config.steps,
+        )
+        self.pretraining = EntropyPretraining(
+            self.agent, self.replay, config.batch, config.knn_k, runtime.device, self.generator
+        )
+        self.sessions = FeedbackSessions(
+            Schedule(
+                config.max_feedback,
+                config.reward_batch,
+                config.feedback_frequency,
+                env.episode_length,
+            ),
+            SessionPlan(
+                config.scheme.value,
+                config.selection.value,
+                config.oversample,
+                config.segment_length,
+            ),
+            self.source,
+            self.episodes,
+            self.reward_model,
+            self.rng,
+            wait_for_feedback,
+        )
+        self.reward = self._reward_learning()
+        parts = UpdateParts(
+            self.agent,
+            self.replay,
+            self.reward_model,
+            self.labels,
+            self.reward.relabel,
+            self.counters.extra.__setitem__,
+            env.obs_dim,
+            self.generator,
+        )
+        self.update = BACKBONES[config.backbone](config, parts)
+        self.evaluations = self._evaluations()
+
+    def _reward_learning(self) -> RewardLearning:
+        config, fast = self.config, self.runtime.fast
+        settings = RewardSettings(
+            config.reward_epochs,
+            config.reward_minibatch,
+            config.reward_stop_accuracy,
+            config.heldout_pairs,
+            config.segment_length,
+            sync_every_step=not fast,
+            relabel_chunk=65_536 if fast else 8_192,
+        )
+        return RewardLearning(
+            self.reward_model, self.labels, self.replay, self.episodes, settings, self.generator
+        )
+
+    def _evaluations(self) -> Evaluations:
+        c = self.config
+        shape = ActorShape(c.task, c.seed, self.env.obs_dim, self.env.act_dim, c.hidden, c.layers)
+        actor = getattr(self.agent, "actor", None)
+        if self.runtime.fast and actor is not None:
+            return BackgroundEvaluations(actor, shape)
+        return InlineEvaluations(self.agent, self.eval_env, self.generator, shape)
+
+    def train(self) -> dict[str, Any]:
+        from seqrank.training.loop import run_loop
+
+        try:
+            with matmul_precision(self.runtime.precision):
+                return run_loop(self)
+        finally:
+            self.evaluations.close()
+
+    def save_checkpoint(self) -> None:
+        save_checkpoint(self)
+
+    def load_checkpoint(self, state: dict[str, Any]) -> None:
+        load_checkpoint(self, state)
+
+
+def open_trainer(
+    factory: Callable[[TrainConfig, RunDir], Trainer], config: TrainConfig, run: RunDir
+) -> tuple[Trainer, dict[str, Any] | None]:
+    """A trainer for `run`, continued from its checkpoint when it has one. Checkpoints do
+    not depend on the path, so a run may resume on the other one."""
+    state = run.load_checkpoint()
+    trainer = factory(config, run)
+    if state is not None:
+        trainer.load_checkpoint(state)
+    return trainer, state
