@@ -18,8 +18,8 @@ from seqrank.labelling.db import LabelDB
 from seqrank.labelling.human import HumanSource
 from seqrank.labelling.jsonl import export_file, import_file
 from seqrank.labelling.server import create_app
-from seqrank.training.trainer import Trainer
 from seqrank.training.runs import RunDir
+from seqrank.training.trainer import Trainer
 from seqrank.types import Answer, AnsweredQuestion, Question
 from test_labelling_api import Page
 from test_training import tiny_config

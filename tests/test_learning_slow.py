@@ -7,9 +7,9 @@ import pytest
 
 from seqrank.config import resolve_config
 from seqrank.envs import make_env
-from seqrank.training.trainer import Trainer
-from seqrank.training.state import episode_seed
 from seqrank.training.runs import RunDir
+from seqrank.training.state import episode_seed
+from seqrank.training.trainer import Trainer
 
 
 def random_return(task: str, episodes: int) -> float:

@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from seqrank.config import resolve_config
-from seqrank.training.trainer import Trainer
 from seqrank.training.runs import RunDir
+from seqrank.training.trainer import Trainer
 
 TIMING = {"steps_per_second", "wall_seconds"}
 
@@ -68,7 +68,7 @@ def test_smoke_run_gets_through_every_phase(finished):
     assert [r["step"] for r in feedback] == [1200, 1700, 2200]
     assert [r["step"] for r in evals] == [1600, 3200]
     assert feedback[-1]["total_asked"] == 30
-    assert finished.entropy_stats.count > 0  # pre-training used the state-entropy reward
+    assert finished.pretraining.stats.count > 0  # pre-training used the state-entropy reward
     assert finished.agent.updates >= 3200 - 300
     assert all(0 <= r["reward_heldout_accuracy"] <= 1 for r in feedback)
     assert feedback[0]["pairs_per_question"] >= 1
