@@ -11,7 +11,7 @@ import httpx
 
 from seqrank.cli import main
 from seqrank.labelling.db import LabelDB
-from test_labelling_restart import start_command
+from support.pages import start_command
 
 TINY = [
     "--task", "dmc:cartpole_swingup", "--steps", "1800", "--seed-steps", "300",

@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-import os
-import re
 import signal
 import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
 import httpx
 
 from seqrank.labelling.db import LabelDB
+from support.pages import start_command
 
 COMMAND = [
     "label",
@@ -33,29 +30,6 @@ COMMAND = [
 
 def start(directory: Path) -> tuple[subprocess.Popen[str], str]:
     return start_command([*COMMAND, "--out", str(directory)])
-
-
-def start_command(args: list[str]) -> tuple[subprocess.Popen[str], str]:
-    """Start `seqrank ARGS`; returns the process and the page address it printed."""
-    process = subprocess.Popen(
-        [sys.executable, "-m", "seqrank", *args],
-        stderr=subprocess.PIPE,
-        stdout=subprocess.DEVNULL,
-        text=True,
-        env={**os.environ, "COLUMNS": "200"},
-    )
-    assert process.stderr is not None
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        line = process.stderr.readline()
-        found = re.search(r"labelling page: (http://\S+)", line)
-        if found:  # keep reading what it prints, so that it never blocks on a full pipe
-            threading.Thread(target=process.stderr.read, daemon=True).start()
-            return process, found.group(1).rstrip("/")
-        if not line and process.poll() is not None:
-            break
-    process.kill()
-    raise AssertionError("the server did not print its address")
 
 
 def question(url: str) -> dict:

@@ -152,7 +152,7 @@ def test_the_labelling_page_shows_top_down_block_clips(tmp_path):
 
     import av
 
-    from test_labelling_api import Page
+    from support.pages import Page
 
     page = Page(tmp_path / "labels", "root", 3, task="block:place", segment_length=30)
     try:
@@ -184,7 +184,7 @@ def block_config(**overrides):
     + [("sequential", t) for t in ("oracle", "mistake", "noisy", "skip", "myopic", "equal")],
 )
 def test_every_scheme_and_teacher_trains_on_block_place(tmp_path, scheme, teacher):
-    from test_training import run
+    from support.runs import run
 
     trainer = run(tmp_path / "run", block_config(scheme=scheme, teacher=teacher, steps=1200))
     summary = trainer.run_dir.read_summary()
@@ -197,7 +197,7 @@ def test_every_scheme_and_teacher_trains_on_block_place(tmp_path, scheme, teache
 
 
 def test_a_resumed_block_run_matches_an_uninterrupted_one(tmp_path):
-    from test_training import resume_after_kill, run, without_timing
+    from support.runs import resume_after_kill, run, without_timing
 
     config = block_config()
     finished = run(tmp_path / "full", config)
@@ -215,7 +215,7 @@ def test_dqn_from_oracle_preferences_reaches_the_goal_far_more_often_than_random
     average. One seed is a coin toss (float rounding differs between CPUs and thread counts),
     so the assertions are on means over three seeds; distributions in learning_thresholds.md.
     """
-    from test_training import run
+    from support.runs import run
 
     finals, bests = [], []
     threads = torch.get_num_threads()

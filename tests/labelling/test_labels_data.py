@@ -21,8 +21,8 @@ from seqrank.labelling.server import create_app
 from seqrank.training.runs import RunDir
 from seqrank.training.trainer import Trainer
 from seqrank.types import Answer, AnsweredQuestion, Question
-from test_labelling_api import Page
-from test_training import tiny_config
+from support.pages import Page
+from support.runs import tiny_config
 
 CHOICES = ["left", "right", "equal", "left", "skip", "right", "left", "timeout"]
 

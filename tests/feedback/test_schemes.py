@@ -5,7 +5,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import perfect_ask, rng
 from seqrank.feedback.closure import augment
 from seqrank.feedback.schemes import (
     SCHEMES,
@@ -19,6 +18,7 @@ from seqrank.feedback.schemes import (
     uniform_choice,
 )
 from seqrank.types import Answer
+from support.asks import perfect_ask, rng
 
 
 def asked_pairs(record):

@@ -11,6 +11,7 @@ from seqrank.agents.sac import SAC, SACSettings
 from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.reward.entropy import RunningMeanStd, knn_distance
 from seqrank.reward.model import RewardModel
+from support.runs import segment_pairs
 
 CPU = torch.device("cpu")
 
@@ -39,16 +40,6 @@ def test_replay_state_round_trip():
     copy.load_state_dict(buffer.state_dict())
     assert torch.equal(copy.obs, buffer.obs) and copy.index == buffer.index
     assert copy.not_done[1, 0] == 0.0  # the terminal flag of step 6 (slot 1)
-
-
-def segment_pairs(count: int, seed: int = 0):
-    """Segments whose true return is the sum of feature 0: a learnable preference."""
-    gen = torch.Generator().manual_seed(seed)
-    segments = torch.randn(2 * count, 10, 3, generator=gen)
-    returns = segments[:, :, 0].sum(1)
-    first, second = torch.arange(0, 2 * count, 2), torch.arange(1, 2 * count, 2)
-    labels = (returns[first] > returns[second]).float()
-    return segments, first, second, labels
 
 
 def test_reward_model_learns_preferences_and_stops_early():

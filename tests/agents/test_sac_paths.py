@@ -18,7 +18,7 @@ from seqrank.reward.model import RewardModel
 from seqrank.training.runs import RunDir
 from seqrank.training.runtime import resolve_runtime
 from seqrank.training.trainer import Trainer
-from test_training import resume_after_kill, run, tiny_config, without_timing
+from support.runs import resume_after_kill, run, tiny_config, without_timing
 
 CPU = torch.device("cpu")
 SETTINGS = SACSettings(64, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
@@ -228,7 +228,7 @@ def test_device_sampling_draws_only_stored_rows():
 
 
 def test_reward_training_reads_back_once_per_epoch_with_the_same_result():
-    from test_learning_parts import segment_pairs
+    from support.runs import segment_pairs
 
     results = []
     for sync in (True, False):
