@@ -13,6 +13,7 @@ import torch
 from seqrank.bench.measure import loop_rates, reward_epoch_microseconds, update_microseconds
 from seqrank.config import TrainConfig, resolve_config
 from seqrank.envs import canonical_task
+from seqrank.scale import resolve_scale
 
 KINDS = ("update", "reward", "loop")
 
@@ -45,9 +46,9 @@ class BenchPlan:
         overrides: dict[str, Any],
         args: Any,
     ) -> BenchPlan:
-        if scale == "auto":
-            scale = "paper" if device.type == "cuda" else "small"
-        config = resolve_config(task, scale, {**overrides, "device": device.type})
+        config = resolve_config(
+            task, resolve_scale(scale, device), {**overrides, "device": device.type}
+        )
         if canonical_task(task)[0] == "block":
             raise ValueError(f"task {task!r} learns with DQN; the benchmark times SAC's paths")
         variants = [Variant("reference", False, "fp32")]

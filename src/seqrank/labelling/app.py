@@ -26,7 +26,8 @@ import numpy as np
 
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task, make_env
-from seqrank.episodes import Episode, EpisodeStore
+from seqrank.envs.recorder import EpisodeRecorder
+from seqrank.episodes import EpisodeStore
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -174,9 +175,9 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
     rng = np.random.default_rng([options.seed, 3])
     generator = torch.Generator().manual_seed(options.seed)
     store = EpisodeStore(options.episodes)
+    recorder = EpisodeRecorder(record_states=True)  # the clips are rendered from states
     for number in range(options.episodes):
         obs, info = env.reset(seed=int(rng.integers(2**31)))
-        columns: dict[str, list[Any]] = {"obs": [], "action": [], "reward": [], "states": []}
         done = False
         while not done:
             if agent is None:
@@ -184,20 +185,11 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
             else:
                 action = agent.act(obs, False, generator)
             action = env.canonical_action(action)
-            columns["states"].append(env.get_state())
+            recorder.before_step(env)
             next_obs, reward, terminated, truncated, _ = env.step(action)
-            for key, value in (("obs", obs), ("action", action), ("reward", reward)):
-                columns[key].append(value)
+            recorder.add(obs, action, float(reward))
             obs, done = next_obs, terminated or truncated
-        store.add(
-            Episode(
-                np.asarray(columns["obs"], np.float32),
-                np.asarray(columns["action"], np.float32),
-                np.asarray(columns["reward"], np.float64),
-                info.get("task_index"),
-                np.asarray(columns["states"]),
-            )
-        )
+        store.add(recorder.finish(info.get("task_index")))
         say(f"episode {number + 1}/{options.episodes} rolled out")
     env.close()
     return store

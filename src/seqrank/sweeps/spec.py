@@ -107,9 +107,10 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
         raise ValueError(f"{source}: task_overrides.{strays[0]} names a task not in tasks")
     variants = _variants(data.get("variants", []), source)
     if scale == "auto":
+        from seqrank.scale import resolve_scale
         from seqrank.training.runtime import resolve_device
 
-        scale = "paper" if resolve_device(device).type == "cuda" else "small"
+        scale = resolve_scale(scale, resolve_device(device))
     runs = []
     for task, scheme, backbone, teacher, (variant, extra), seed in product(
         axes["tasks"], axes["schemes"], axes["backbones"], axes["teachers"], variants, seeds
