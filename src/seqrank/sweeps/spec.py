@@ -55,7 +55,8 @@ TOP_KEYS = (
 )
 AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
 SETTINGS = {f.name for f in fields(TrainConfig)} - {"task", "scheme", "backbone", "teacher", "seed"}
-_KIND = {f.name: str(f.type) for f in fields(TrainConfig)}
+# int and float settings, and the rest given as strings (choices are checked by the config)
+_KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in fields(TrainConfig)}
 
 
 @dataclass(frozen=True)
