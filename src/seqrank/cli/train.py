@@ -22,7 +22,6 @@ if TYPE_CHECKING:
     import torch
 
 # Options that name the run rather than tune it.
-IDENTITY = ("task", "scheme", "teacher", "backbone", "seed", "device")
 
 
 def add_parser(commands: Any) -> None:
