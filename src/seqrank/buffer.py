@@ -21,7 +21,7 @@ RewardFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 class Batch:
     obs: torch.Tensor
     action: torch.Tensor
-    reward: torch.Tensor  # learned reward, shape (B, 1)
+    reward: torch.Tensor  # the reward trained on (learned, or true for the baseline), (B, 1)
     next_obs: torch.Tensor
     not_done: torch.Tensor  # 0 only at true terminals; time limits are not terminal
 
@@ -47,8 +47,13 @@ class ReplayBuffer:
         act_dim: int,
         device: torch.device,
         storage: torch.device | None = None,
+        train_on: str = "reward",
     ):
-        self.capacity, self.device = capacity, device
+        """`train_on` is the reward column that batches carry: `reward` (learned) or
+        `true_reward` (the true-reward baseline)."""
+        if train_on not in ("reward", "true_reward"):
+            raise ValueError(f"train_on {train_on!r}; accepted: reward, true_reward")
+        self.capacity, self.device, self.train_on = capacity, device, train_on
         self.storage = storage if storage is not None else device
         widths = (obs_dim, act_dim, obs_dim, 1, 1, 1)
         self.width = sum(widths)
@@ -149,7 +154,7 @@ class ReplayBuffer:
         return Batch(
             rows[:, cols["obs"]],
             rows[:, cols["action"]],
-            rows[:, cols["reward"]],
+            rows[:, cols[self.train_on]],
             rows[:, cols["next_obs"]],
             rows[:, cols["not_done"]],
         )

@@ -39,6 +39,23 @@ class Precision(StrEnum):
     BF16 = "bf16"
 
 
+class RewardSignal(StrEnum):
+    """What the agent learns from."""
+
+    LEARNED = "learned"  # a reward model trained on preferences (the method)
+    TRUE = "true"  # the environment's reward, no feedback: the true-reward baseline
+    NONE = "none"  # no feedback: pre-training, then the untrained reward model (the floor)
+
+    @property
+    def asks(self) -> bool:
+        return self is RewardSignal.LEARNED
+
+    @property
+    def method(self) -> str:
+        """The name a report gives a baseline run."""
+        return {"learned": "learned", "true": "true-reward", "none": "no-feedback"}[self.value]
+
+
 class Selection(StrEnum):
     UNIFORM = "uniform"
     DISAGREEMENT = "disagreement"

@@ -15,6 +15,7 @@ from seqrank.choices import (
     Backbone,
     Device,
     Precision,
+    RewardSignal,
     Scale,
     Selection,
     TrainingPath,
@@ -40,6 +41,7 @@ CHOICES: dict[str, type[Any]] = {
     "device": Device,
     "path": TrainingPath,
     "precision": Precision,
+    "reward": RewardSignal,
 }
 
 
@@ -48,6 +50,7 @@ class TrainConfig:
     task: str = "walker_walk"
     scheme: SchemeName = SchemeName.SEQUENTIAL
     teacher: str = "oracle"  # a `parse_teacher` value: preset[,knob=value...], replay:FILE, human
+    reward: RewardSignal = RewardSignal.LEARNED  # `true` and `none` are the baselines
     backbone: Backbone = Backbone.PEBBLE
     seed: int = 0
     steps: int = 500_000
@@ -238,7 +241,9 @@ def validate(config: TrainConfig) -> None:
             "and supports backbone pebble"
         )
     check_path(config.path, config.precision, discrete=canonical_task(config.task)[0] == "block")
-    if config.teacher_spec.kind == "human" and not config.record_states:
+    if not config.reward.asks:
+        _check_baseline(config)
+    elif config.teacher_spec.kind == "human" and not config.record_states:
         raise ValueError(
             "teacher 'human' answers on the labelling page: use `seqrank label online` "
             "(it also sets record_states 1, which the clips need)"
@@ -256,6 +261,8 @@ def validate(config: TrainConfig) -> None:
             f"reward_batch {config.reward_batch} exceeds max_feedback {config.max_feedback}: "
             "a session cannot ask more questions than the whole budget"
         )
+    if not config.reward.asks:
+        return  # no sessions: the feedback budget does not apply
     last_session = config.first_session_step + (config.sessions - 1) * config.feedback_frequency
     if last_session >= config.steps:
         raise ValueError(
@@ -263,4 +270,18 @@ def validate(config: TrainConfig) -> None:
             f"every {config.feedback_frequency} steps from step {config.first_session_step} "
             f"end at step {last_session}, but the run has only {config.steps} steps; "
             "raise --steps or --reward-batch, or lower --max-feedback or --feedback-frequency"
+        )
+
+
+def _check_baseline(config: TrainConfig) -> None:
+    """A baseline run (`reward` true or none) asks no questions."""
+    if config.backbone != Backbone.PEBBLE:
+        raise ValueError(
+            f"backbone '{config.backbone}' learns its reward from feedback; reward "
+            f"'{config.reward}' asks for none: use backbone pebble"
+        )
+    if config.teacher_spec.kind != "scripted":
+        raise ValueError(
+            f"teacher '{config.teacher}' answers questions; reward '{config.reward}' asks "
+            "none: leave --teacher out"
         )

@@ -67,6 +67,18 @@ def test_train_writes_a_self_describing_run_directory(tmp_path, capsys):
     assert again["eval_curve"] == summary["eval_curve"] and again["asked"] == 20
 
 
+def test_the_true_reward_baseline_is_one_option_and_says_what_it_is(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    short = ["--task", "dmc:cartpole_swingup", "--steps", "1100", "--seed-steps", "300"]
+    small = ["--hidden", "32", "--batch", "32", "--eval-every", "1100", "--eval-episodes", "1"]
+    assert main(["train", *short, *small, "--device", "cpu", "--reward", "true", "--quiet"]) == 0
+    (run_dir,) = (tmp_path / "seqrank-out" / "runs").iterdir()
+    assert run_dir.name.startswith("dmc-cartpole_swingup_true-reward_seed0_")
+    printed = capsys.readouterr().out
+    assert "the true-reward baseline (no feedback)" in printed
+    assert json.loads((run_dir / "summary.json").read_text())["reward"] == "true"
+
+
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "seqrank", "train", *args],

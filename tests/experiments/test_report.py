@@ -46,9 +46,10 @@ def test_stratified_bootstrap_resamples_within_tasks():
     assert low < iqm(spread["a"]) < high and low > 2.0 and high < 7.0
 
 
-def fake_run(directory, task, scheme, seed, returns, success=None, finished=True):
+def fake_run(directory, task, scheme, seed, returns, success=None, finished=True, reward="learned"):
     directory.mkdir(parents=True)
     config = {"task": task, "scheme": scheme, "backbone": "pebble", "teacher": "oracle"}
+    config["reward"] = reward
     config.update(seed=seed, steps=1000 * len(returns), scale="small")
     (directory / "config.json").write_text(json.dumps(config))
     rows = []
@@ -118,3 +119,44 @@ def test_report_tables_match_the_runs(tmp_path):
 def test_report_of_an_empty_folder_is_a_clear_error(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert "holds no run directories" in capsys.readouterr().err
+
+
+def test_the_true_reward_agent_is_a_column_a_reference_and_the_unit_of_relative_scores(
+    tmp_path,
+):
+    finals = {"root": [300.0, 360.0, 330.0], "true-reward": [600.0, 600.0, 600.0]}
+    for method, values in finals.items():
+        reward = "true" if method == "true-reward" else "learned"
+        for seed, value in enumerate(values):
+            path = tmp_path / f"{method}_{seed}"
+            fake_run(
+                path,
+                "walker_walk",
+                "sequential" if reward == "true" else method,
+                seed,
+                [100.0, value],
+                reward=reward,
+            )
+    fake_run(tmp_path / "floor_0", "walker_walk", "sequential", 0, [50.0, 60.0], reward="none")
+    fake_run(tmp_path / "mistake_0", "walker_walk", "root", 0, [50.0, 90.0])
+    (tmp_path / "mistake_0" / "config.json").write_text(
+        (tmp_path / "mistake_0" / "config.json").read_text().replace("oracle", "mistake")
+    )
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    # baselines are named by what they learn from, last; the teacher joins learned names only
+    assert report["methods"] == ["root/mistake", "root/oracle", "no-feedback", "true-reward"]
+    assert report["reference"] == "true-reward"
+    cells = {c["method"]: c for c in report["table"]}
+    assert cells["root/oracle"]["relative"] == pytest.approx(330.0 / 600.0)
+    # the reference is constant: the interval lies within the root runs' range over 600
+    low, high = cells["root/oracle"]["relative_low"], cells["root/oracle"]["relative_high"]
+    assert 300.0 / 600.0 <= low < 330.0 / 600.0 < high <= 360.0 / 600.0
+    assert cells["no-feedback"]["relative"] == pytest.approx(0.1)
+    assert cells["true-reward"]["relative"] is None
+    text = (tmp_path / "r" / "report.md").read_text()
+    assert "| walker_walk | root/oracle | 0.55 |" in text
+    header = next(line for line in text.splitlines() if line.startswith("| task |"))
+    assert header.endswith("| no-feedback | true-reward |")  # columns of the main table
+    csv_text = (tmp_path / "r" / "report.csv").read_text()
+    assert csv_text.splitlines()[0].endswith("relative,relative_low,relative_high")

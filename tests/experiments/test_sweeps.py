@@ -68,9 +68,34 @@ def test_expansion_covers_the_grid_with_names_and_settings(tmp_path):
     assert all(r.config.steps == 100_000 and r.config.scale == "small" for r in sweep.runs)
 
 
+def test_baselines_add_one_run_per_task_variant_and_seed():
+    sweep = expand(
+        {
+            "tasks": ["walker_walk", "block:place"],
+            "schemes": ["pairwise", "root"],
+            "teachers": ["oracle", "mistake"],
+            "baselines": ["true", "none"],
+            "seeds": 2,
+            "device": "cpu",
+        }
+    )
+    by_name = {r.name: r.config for r in sweep.runs}
+    assert len(sweep.runs) == 2 * (2 * 2 + 2) * 2
+    assert by_name["walker_walk/true-reward_seed1"].reward == "true"
+    assert by_name["block-place/no-feedback_seed0"].reward == "none"
+    assert by_name["walker_walk/root_pebble_mistake_seed1"].reward == "learned"
+    only = expand({"tasks": ["walker_walk"], "baselines": ["true"], "seeds": 5, "device": "cpu"})
+    assert [r.name for r in only.runs] == [f"walker_walk/true-reward_seed{s}" for s in range(5)]
+
+
 @pytest.mark.parametrize(
     ("data", "message"),
     [
+        ({"tasks": ["walker_walk"], "baselines": ["oracle"]}, "unknown baseline 'oracle'; "),
+        ({"tasks": ["walker_walk"], "baselines": ["learned"]}, "accepted: true, none"),
+        ({"tasks": ["walker_walk"], "baselines": ["true", "true"]}, "lists a name twice"),
+        ({"tasks": ["walker_walk"], "baselines": "true"}, "baselines must be a list"),
+        ({"tasks": ["walker_walk"]}, "schemes is required"),
         ({"schemes": ["root"]}, "tasks is required"),
         ({"tasks": [], "schemes": ["root"]}, "tasks must be a non-empty list"),
         ({"tasks": ["walker_walk"], "schemes": ["root", "root"]}, "lists a name twice"),

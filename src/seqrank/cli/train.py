@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from seqrank.choices import RewardSignal
 from seqrank.cli.options import add_run_options, given_settings
 from seqrank.config import TrainConfig, resolve_config
 from seqrank.errors import UsageError
@@ -21,16 +22,17 @@ from seqrank.training.runs import RunDir
 if TYPE_CHECKING:
     import torch
 
-# Options that name the run rather than tune it.
-
 
 def add_parser(commands: Any) -> None:
     train = commands.add_parser(
         "train",
-        help="train an agent from preferences (PEBBLE or MRN)",
+        help="train an agent from preferences (PEBBLE or MRN), or a baseline",
         description="Train SAC from a reward learned on preferences. Defaults: walker_walk, "
         "sequential scheme, oracle teacher, PEBBLE, the paper's Table 2 settings on a GPU "
-        "and the small preset on a CPU (--scale auto). Every setting below overrides.",
+        "and the small preset on a CPU (--scale auto). Every setting below overrides. "
+        "Baselines: --reward true trains the same agent on the environment's reward (no "
+        "feedback, no pre-training); --reward none pre-trains, then learns from the "
+        "untrained reward model (the floor that shows what feedback adds).",
     )
     add_run_options(train)
     train.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -104,6 +106,8 @@ def _resume_run(args: argparse.Namespace, err: Console, trainer_cls: Any) -> Any
 def _run_name(config: TrainConfig) -> str:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     task = config.task.replace(":", "-")
+    if not config.reward.asks:
+        return f"{task}_{config.reward.method}_seed{config.seed}_{stamp}"
     teacher = config.teacher_spec.short_name
     return f"{task}_{config.scheme}_{teacher}_{config.backbone}_seed{config.seed}_{stamp}"
 
@@ -139,10 +143,13 @@ def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet:
 
 
 def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
-    out.print(
-        f"[bold]{summary['task']}[/bold]: {summary['scheme']} scheme, {summary['teacher']} "
-        f"teacher, {summary['backbone']}"
+    reward = RewardSignal(summary.get("reward", "learned"))
+    method = (
+        f"{summary['scheme']} scheme, {summary['teacher']} teacher, {summary['backbone']}"
+        if reward.asks
+        else f"the {reward.method} baseline (no feedback)"
     )
+    out.print(f"[bold]{summary['task']}[/bold]: {method}")
     table = Table(show_header=False)
     table.add_column("what")
     table.add_column("value", justify="right")
@@ -169,5 +176,6 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
             out.print(f"  {step:>9,}  {value:8.1f}  {'#' * int(40 * max(value, 0) / top)}")
         from seqrank.plots import plot_curve
 
-        plot_curve(curve, run.path / "returns.png", f"{summary['task']} ({summary['scheme']})")
+        name = summary["scheme"] if reward.asks else reward.method
+        plot_curve(curve, run.path / "returns.png", f"{summary['task']} ({name})")
     out.print(f"run directory: {run.path}")

@@ -21,6 +21,7 @@ class RunResult:
     scheme: str
     backbone: str
     teacher: str
+    reward: str  # learned, or a baseline: true, none
     seed: int
     scale: str
     finished: bool
@@ -30,6 +31,10 @@ class RunResult:
     final_success: float | None  # percent
     curve: tuple[tuple[int, float, float], ...]  # (step, return, success %)
     feedback: tuple[dict[str, Any], ...]
+
+    @property
+    def baseline(self) -> bool:
+        return self.reward != "learned"
 
     @property
     def suite(self) -> str:
@@ -80,6 +85,7 @@ def collect_runs(folder: Path) -> list[RunResult]:
                 config["scheme"],
                 config.get("backbone", "pebble"),
                 config.get("teacher", "oracle"),
+                str(config.get("reward", "learned")),
                 int(config.get("seed", 0)),
                 str(config.get("scale", "paper")),
                 (directory / "summary.json").exists(),

@@ -13,6 +13,12 @@ import numpy as np
 
 from seqrank.report.collect import RunResult
 
+# the baselines are reference lines: the true-reward agent above, the no-feedback floor below
+BASELINE_STYLE: dict[str, tuple[str, str]] = {
+    "true-reward": ("black", "--"),
+    "no-feedback": ("grey", ":"),
+}
+
 
 def _by_method(runs: list[RunResult], names: dict[Path, str]) -> dict[str, list[RunResult]]:
     grouped: dict[str, list[RunResult]] = defaultdict(list)
@@ -51,7 +57,9 @@ def plot_curves(runs: list[RunResult], names: dict[Path, str], task: str, path: 
         low, high = means - half, means + half
         if metric != "return":
             low, high = np.clip(low, 0, 100), np.clip(high, 0, 100)
-        (line,) = axis.plot(steps, means, label=f"{method} (n={len(members)})")
+        color, dash = BASELINE_STYLE.get(method.split("/")[0], (None, "-"))
+        label = f"{method} (n={len(members)})"
+        (line,) = axis.plot(steps, means, label=label, color=color, linestyle=dash)
         axis.fill_between(steps, low, high, color=line.get_color(), alpha=0.2)
     axis.set_xlabel("environment steps")
     axis.set_ylabel("evaluation return" if metric == "return" else "success rate (%)")

@@ -1,9 +1,11 @@
 """`seqrank report RUNS_DIR`: paper-style tables, robust statistics and plots.
 
 Methods are schemes; when a folder mixes backbones, teachers or scales they join the method
-name (`root/mrn/mistake/small`). Outputs in `--out` (default RUNS_DIR/report): `report.md`,
-`report.csv` (one row per task and method), `report.json`, `curves_<task>.png` and
-`feedback_<task>.png`.
+name (`root/mrn/mistake/small`). Baseline runs (`--reward true` or `none`) are the methods
+`true-reward` and `no-feedback`; with a true-reward run in the folder, every curve shows it
+as a reference line and every method's score is also given relative to it. Outputs in
+`--out` (default RUNS_DIR/report): `report.md`, `report.csv` (one row per task and method),
+`report.json`, `curves_<task>.png` and `feedback_<task>.png`.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from seqrank.choices import RewardSignal
 from seqrank.report.collect import RunResult, collect_runs
 from seqrank.report.stats import (
     Scores,
@@ -28,21 +31,29 @@ from seqrank.report.stats import (
 )
 
 SCHEME_ORDER = ("pairwise", "sequential", "root", "ranked")
+TRUE_REWARD = RewardSignal.TRUE.method
+BASELINE_ORDER = (RewardSignal.NONE.method, TRUE_REWARD)
 Cells = dict[tuple[str, str], list[RunResult]]  # (task, method) -> its runs with a score
 Normalized = Mapping[str, Scores]  # method -> task -> normalized scores
 
 
 def method_names(runs: list[RunResult]) -> dict[Path, str]:
-    vary_backbone = len({r.backbone for r in runs}) > 1
-    vary_teacher = len({r.teacher for r in runs}) > 1
+    """Learned-reward runs are named by scheme, baselines by what they learn from
+    (`true-reward`, `no-feedback`); a setting that varies across the folder joins the name."""
+    learned = [r for r in runs if not r.baseline]
+    vary_backbone = len({r.backbone for r in learned}) > 1
+    vary_teacher = len({r.teacher for r in learned}) > 1
     vary_scale = len({r.scale for r in runs}) > 1
     names = {}
     for run in runs:
-        parts = [run.scheme]
-        if vary_backbone:
-            parts.append(run.backbone)
-        if vary_teacher:
-            parts.append(run.teacher)
+        if run.baseline:
+            parts = [RewardSignal(run.reward).method]
+        else:
+            parts = [run.scheme]
+            if vary_backbone:
+                parts.append(run.backbone)
+            if vary_teacher:
+                parts.append(run.teacher)
         if vary_scale:
             parts.append(run.scale)
         names[run.path] = "/".join(parts)
@@ -50,12 +61,21 @@ def method_names(runs: list[RunResult]) -> dict[Path, str]:
 
 
 def _order(methods: set[str]) -> list[str]:
+    """Schemes in the paper's order, then other methods, then the baselines."""
+    order = (*SCHEME_ORDER, "", *BASELINE_ORDER)
+
     def key(name: str) -> tuple[int, str]:
-        scheme = name.split("/")[0]
-        rank = SCHEME_ORDER.index(scheme) if scheme in SCHEME_ORDER else len(SCHEME_ORDER)
-        return rank, name
+        first = name.split("/")[0]
+        return order.index(first) if first in order else order.index(""), name
 
     return sorted(methods, key=key)
+
+
+def reference_method(methods: list[str]) -> str | None:
+    """The true-reward method that scores are set against, when the folder has one run of it
+    (at one scale)."""
+    references = [m for m in methods if m.split("/")[0] == TRUE_REWARD]
+    return references[0] if len(references) == 1 else None
 
 
 def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[str, Any]:
@@ -69,6 +89,9 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
         if run.score is not None:
             cells[(run.task, names[run.path])].append(run)
     table = _task_table(cells, tasks, methods, repetitions, rng)
+    reference = reference_method(methods)
+    if reference is not None:
+        _add_relative(table, cells, reference, repetitions, rng)
     normalized = {
         method: {
             task: np.array([r.normalized for r in cells[(task, method)]], np.float64)
@@ -83,6 +106,7 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
         "finished": sum(r.finished for r in runs),
         "tasks": tasks,
         "methods": methods,
+        "reference": reference,
         "table": table,
         "aggregate_iqm": _aggregate(normalized, methods, repetitions, rng),
         "probability_of_improvement": _improvement(normalized, methods, repetitions, rng),
@@ -124,6 +148,32 @@ def _task_table(
                 }
             )
     return table
+
+
+def _add_relative(
+    table: list[dict[str, Any]],
+    cells: Cells,
+    reference: str,
+    repetitions: int,
+    rng: np.random.Generator,
+) -> None:
+    """Each row's IQM as a fraction of the true-reward agent's IQM on its task, with a 95%
+    bootstrap CI (both methods' runs resampled); left out where that IQM is not positive."""
+    for row in table:
+        row.update(relative=None, relative_low=None, relative_high=None)
+        base = cells.get((row["task"], reference), [])
+        if row["method"] == reference or not base:
+            continue
+        x = {row["task"]: np.array([r.score for r in cells[(row["task"], row["method"])]])}
+        y = {row["task"]: np.array([r.score for r in base], np.float64)}
+        if min(y[row["task"]]) <= 0:
+            continue  # a ratio to a score at or below zero means nothing
+        low, high = stratified_bootstrap_ci(iqm_ratio, (x, y), repetitions, rng)
+        row.update(relative=iqm_ratio(x, y), relative_low=low, relative_high=high)
+
+
+def iqm_ratio(x: Scores, y: Scores) -> float:
+    return pooled_iqm(x) / pooled_iqm(y)
 
 
 def _aggregate(
@@ -197,6 +247,7 @@ def format_markdown(report: dict[str, Any]) -> str:
             f"| {c['task']} | {c['method']} | {c['iqm']:.1f} | [{c['iqm_low']:.1f}, "
             f"{c['iqm_high']:.1f}] |"
         )
+    lines += _relative_lines(report)
     lines += [
         "",
         "Aggregate IQM of normalized scores (DMControl return / 1000, success rate / 100) over "
@@ -221,6 +272,27 @@ def format_markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _relative_lines(report: dict[str, Any]) -> list[str]:
+    reference = report["reference"]
+    rows = [c for c in report["table"] if c.get("relative") is not None]
+    if reference is None or not rows:
+        return []
+    lines = [
+        "",
+        f"Score relative to the true-reward agent ({reference}): IQM / its IQM on the same "
+        "task, 95% bootstrap CI (both resampled):",
+        "",
+        "| task | method | relative score | 95% CI |",
+        "|---|---|---|---|",
+    ]
+    for c in rows:
+        lines.append(
+            f"| {c['task']} | {c['method']} | {c['relative']:.2f} | [{c['relative_low']:.2f}, "
+            f"{c['relative_high']:.2f}] |"
+        )
+    return lines
+
+
 def write_report(report: dict[str, Any], out: Path, plots: bool = True) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "report.md", out / "report.csv", out / "report.json"]
@@ -238,8 +310,11 @@ def write_report(report: dict[str, Any], out: Path, plots: bool = True) -> list[
             "iqm_low",
             "iqm_high",
             "steps",
+            "relative",
+            "relative_low",
+            "relative_high",
         ]
-        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer = csv.DictWriter(handle, fieldnames=fields, restval="")
         writer.writeheader()
         writer.writerows(report["table"])
     public = {k: v for k, v in report.items() if not k.startswith("_")}

@@ -9,6 +9,7 @@ tasks = ["walker_walk", "cheetah_run"]
 schemes = ["pairwise", "sequential", "root"]
 backbones = ["pebble"]            # optional, default ["pebble"]
 teachers = ["oracle"]             # optional, default ["oracle"]
+baselines = ["true", "none"]      # optional: the true-reward agent, the no-feedback floor
 seeds = 3                         # a count (0, 1, 2) or a list [0, 5, 7]
 retries = 1                       # optional: attempts after a failure, default 1
 
@@ -24,8 +25,10 @@ max_feedback = 100
 ```
 
 Every run is one `seqrank train` run directory: `<out>/runs/<task>/<scheme>_<backbone>_
-<teacher>[_<variant>]_seed<seed>`. Expansion checks every run's settings up front, so a bad
-value is reported before anything starts.
+<teacher>[_<variant>]_seed<seed>`; a baseline run (one per task, variant and seed, whatever
+the schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>[_<variant>]_
+seed<seed>`, and `schemes` may be left out when `baselines` is given. Expansion checks
+every run's settings up front, so a bad value is reported before anything starts.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from itertools import product
 from pathlib import Path
 from typing import Any
 
+from seqrank.choices import RewardSignal
 from seqrank.config import TrainConfig, resolve_config
 
 TOP_KEYS = (
@@ -47,6 +51,7 @@ TOP_KEYS = (
     "schemes",
     "backbones",
     "teachers",
+    "baselines",
     "seeds",
     "retries",
     "overrides",
@@ -54,7 +59,8 @@ TOP_KEYS = (
     "variants",
 )
 AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
-SETTINGS = {f.name for f in fields(TrainConfig)} - {"task", "scheme", "backbone", "teacher", "seed"}
+AXIS_SETTINGS = {"task", "scheme", "backbone", "teacher", "reward", "seed"}
+SETTINGS = {f.name for f in fields(TrainConfig)} - AXIS_SETTINGS
 # int and float settings, and the rest given as strings (choices are checked by the config)
 _KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in fields(TrainConfig)}
 
@@ -90,6 +96,9 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
     unknown = sorted(set(data) - set(TOP_KEYS))
     if unknown:
         raise ValueError(f"{source}: unknown key {unknown[0]!r}; accepted: {', '.join(TOP_KEYS)}")
+    baselines = _baselines(data.get("baselines", []), source)
+    if baselines and "schemes" not in data:
+        data = {**data, "schemes": []}
     axes = {key: _names(data, key, source) for key in AXES}
     seeds = _seeds(data.get("seeds", 1), source)
     retries = data.get("retries", 1)
@@ -113,20 +122,27 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
 
         scale = resolve_scale(scale, resolve_device(device))
     runs = []
-    for task, scheme, backbone, teacher, (variant, extra), seed in product(
-        axes["tasks"], axes["schemes"], axes["backbones"], axes["teachers"], variants, seeds
+    learned = product(axes["schemes"], axes["backbones"], axes["teachers"])
+    methods = [
+        (
+            f"{scheme}_{backbone}_{teacher}",
+            {"scheme": scheme, "backbone": backbone, "teacher": teacher},
+        )
+        for scheme, backbone, teacher in learned
+    ]
+    methods += [(b.method, {"reward": b.value}) for b in baselines]
+    for task, (method, axis_values), (variant, extra), seed in product(
+        axes["tasks"], methods, variants, seeds
     ):
         settings = {
             **overrides,
             **_settings(per_task.get(task, {}), f"{source} [task_overrides.{task}]"),
             **extra,
-            "scheme": scheme,
-            "backbone": backbone,
-            "teacher": teacher,
+            **axis_values,
             "seed": seed,
             "device": device,
         }
-        where = f"{source}: run {task} {scheme} {backbone} {teacher} {variant or ''} seed {seed}"
+        where = f"{source}: run {task} {method} {variant or ''} seed {seed}"
         try:
             config = resolve_config(task, scale, settings)
             if device in ("cpu", "cuda"):  # with auto the path depends on where it runs
@@ -135,9 +151,7 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
             raise ValueError(f"{where}: {problem}") from None
         suffix = f"_{variant}" if variant else ""
         folder = task.replace(":", "-")
-        runs.append(
-            PlannedRun(f"{folder}/{scheme}_{backbone}_{teacher}{suffix}_seed{seed}", config)
-        )
+        runs.append(PlannedRun(f"{folder}/{method}{suffix}_seed{seed}", config))
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)
@@ -152,11 +166,28 @@ def _check_path(config: TrainConfig, device: str) -> None:
     config_runtime(config, torch.device(device))
 
 
+def _baselines(value: Any, source: str) -> list[RewardSignal]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ValueError(f'{source}: baselines must be a list of names, e.g. ["true"]')
+    accepted = [b.value for b in RewardSignal if not b.asks]
+    unknown = [v for v in value if v not in accepted]
+    if unknown:
+        raise ValueError(
+            f"{source}: unknown baseline {unknown[0]!r}; accepted: {', '.join(accepted)}"
+        )
+    chosen = [RewardSignal(v) for v in value]
+    if len(set(chosen)) != len(chosen):
+        raise ValueError(f"{source}: baselines lists a name twice: {value!r}")
+    return chosen
+
+
 def _names(data: dict[str, Any], key: str, source: str) -> list[str]:
     defaults = {"backbones": ["pebble"], "teachers": ["oracle"]}
     if key not in data and key not in defaults:
         raise ValueError(f"{source}: {key} is required (a list, e.g. {key} = [...])")
     values = data.get(key, defaults.get(key))
+    if key == "schemes" and values == [] and "baselines" in data:
+        return []  # a sweep of baselines only
     if not isinstance(values, list) or not values or not all(isinstance(v, str) for v in values):
         raise ValueError(f"{source}: {key} must be a non-empty list of names, got {values!r}")
     if len(set(values)) != len(values):

@@ -1,6 +1,7 @@
 """The PEBBLE / MRN training loop (SPEC sections 1 and 7), phase by phase.
 
-Each step: act and store (random actions during the warm-up); then, by step,
+Each step: act and store (random actions during the warm-up); then, by step (for the
+learned reward; the baselines of `RewardSignal` skip what they do not need),
 - warm-up (`seed_steps`): nothing to learn yet;
 - unsupervised pre-training (until `seed_steps + unsup_steps`): the agent learns from the
   state-entropy reward;
@@ -22,6 +23,7 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, Any
 
+from seqrank.choices import RewardSignal
 from seqrank.feedback.session import store_session
 from seqrank.training import metrics
 from seqrank.training.critic_reset import reset_critic
@@ -37,13 +39,12 @@ def run_loop(t: Trainer) -> dict[str, Any]:
     t.collector.start_episode(config.seed, c)
     tick = time.perf_counter()
     while c.step < config.steps:
-        episode_over = t.collector.step(config.seed, c, t.reward.reward_fn(c.sessions > 0))
+        episode_over = t.collector.step(config.seed, c, t.reward.reward_fn(_reward_ready(t)))
         learn(t)
         if c.step % metrics.TRAIN_LOG_EVERY == 0 and t.agent.last_metrics:
-            pretraining = c.step < config.first_session_step
             stats_std = t.pretraining.stats.std
             t.run_dir.append_metrics(
-                metrics.train_row(c, pretraining, t.agent.last_metrics, stats_std)
+                metrics.train_row(c, _phase(t), t.agent.last_metrics, stats_std)
             )
         if c.step % config.eval_every == 0 or c.step == config.steps:
             with t.phase_timer("evaluation"):
@@ -61,13 +62,41 @@ def run_loop(t: Trainer) -> dict[str, Any]:
     return summary
 
 
+def _phase(t: Trainer) -> str:
+    """The `phase` of a `train` row: pretrain, preference, true-reward or no-feedback."""
+    if t.config.reward is not RewardSignal.LEARNED:
+        first = t.config.first_session_step
+        pretraining = t.config.reward is RewardSignal.NONE and t.counters.step < first
+        return "pretrain" if pretraining else t.config.reward.method
+    return "pretrain" if t.counters.step < t.config.first_session_step else "preference"
+
+
+def _reward_ready(t: Trainer) -> bool:
+    """Whether new transitions get the reward model's reward: after the first session, or
+    from the end of pre-training for the no-feedback baseline (the true-reward baseline
+    trains on the true reward column and never needs it)."""
+    config, c = t.config, t.counters
+    if config.reward is RewardSignal.NONE:
+        return c.step >= config.first_session_step
+    return config.reward is RewardSignal.LEARNED and c.sessions > 0
+
+
 def learn(t: Trainer) -> None:
     """What the agent and the reward model learn at this step."""
     config, c = t.config, t.counters
     if c.step < config.seed_steps:  # warm-up: random actions only
         return
+    if config.reward is RewardSignal.TRUE:  # the baseline: no pre-training, no feedback
+        t.update(c.step, False)
+        return
     if c.step < config.first_session_step:
         t.pretraining.update()
+        return
+    if config.reward is RewardSignal.NONE:
+        if c.step == config.first_session_step:  # what the first session would do, unlearned
+            t.reward.relabel()
+            reset_critic(t.agent, t.replay, config.updates_after_reset, config.batch, t.generator)
+        t.update(c.step, False)
         return
     finish_session(t, t.sessions.collect())  # a session answered in the background
     feedback_open = t.sessions.is_open(c)

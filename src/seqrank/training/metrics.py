@@ -58,11 +58,10 @@ def feedback_row(
 
 
 def train_row(
-    c: Counters, pretraining: bool, agent_metrics: dict[str, float], entropy_std: float
+    c: Counters, phase: str, agent_metrics: dict[str, float], entropy_std: float
 ) -> dict[str, Any]:
-    phase = "pretrain" if pretraining else "preference"
     row: dict[str, Any] = {"step": c.step, "kind": "train", "phase": phase, **agent_metrics}
-    if pretraining:
+    if phase == "pretrain":
         row["intrinsic_reward_std"] = entropy_std
     return {**row, **c.extra}
 
@@ -102,6 +101,7 @@ def summary(config: TrainConfig, c: Counters, rows: list[dict[str, Any]]) -> dic
         "scheme": config.scheme,
         "teacher": config.teacher,
         "backbone": config.backbone,
+        "reward": config.reward,
         "steps": c.step,
         "final_eval_return": c.last_eval_return,
         "final_eval_success_rate": c.last_eval_success,

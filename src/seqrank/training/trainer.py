@@ -11,6 +11,7 @@ import torch
 
 from seqrank.agents.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
+from seqrank.choices import RewardSignal
 from seqrank.config import TrainConfig
 from seqrank.envs import make_env
 from seqrank.episodes import EpisodeStore
@@ -83,7 +84,8 @@ class Trainer:
         )
         # the reference path keeps the buffer on the host and copies each batch over
         storage = device if runtime.fast else torch.device("cpu")
-        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage)
+        train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
+        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore()
         self.source = source if source is not None else make_source(config.teacher)
