@@ -1,5 +1,6 @@
 """Does torch.compile speed up the fast SAC update here? Times 50 eager updates, compiles
-`FastSAC._step`, then times 50 compiled ones (walker sizes of the small preset).
+the update (`SAC.update_with_noise`, run the fast way), then times 50 compiled ones
+(walker sizes of the small preset).
 
     .venv/bin/python scripts/compile_probe.py
 """
@@ -10,15 +11,15 @@ import time
 
 import torch
 
-from seqrank.agents.fast_sac import FastSAC
-from seqrank.agents.sac import SACSettings
+from seqrank.agents.sac import SAC, Execution, SACSettings
 from seqrank.buffer import Batch
 
 
 def main() -> None:
     settings = SACSettings(256, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
     torch.manual_seed(0)
-    agent = FastSAC(24, 6, settings, torch.device("cpu"))
+    cpu = torch.device("cpu")
+    agent = SAC(24, 6, settings, cpu, Execution.fast(cpu, "fp32"))
     generator = torch.Generator().manual_seed(1)
     rows = 256
     batch = Batch(
@@ -37,7 +38,7 @@ def main() -> None:
 
     agent.update(batch, generator)
     eager = per_update()
-    agent._step = torch.compile(agent._step)  # type: ignore[method-assign]
+    agent.update_with_noise = torch.compile(agent.update_with_noise)  # type: ignore[method-assign]
     started = time.perf_counter()
     agent.update(batch, generator)
     compile_seconds = time.perf_counter() - started

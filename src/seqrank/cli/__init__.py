@@ -1,5 +1,5 @@
 """The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
-report, bench."""
+report, bench, reward-bench."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import seqrank.cli.bench as bench
 import seqrank.cli.label as label
 import seqrank.cli.labels as labels
 import seqrank.cli.report as report
+import seqrank.cli.reward_bench as reward_bench
 import seqrank.cli.simulate as simulate
 import seqrank.cli.study_report as study_report
 import seqrank.cli.sweep as sweep
@@ -23,7 +24,18 @@ from seqrank.cli.options import Parser
 from seqrank.errors import UsageError
 
 # Each module adds its sub-command's parser, whose `handler` default runs it; in help order.
-SUBCOMMANDS = (theory, simulate, train, label, labels, study_report, sweep, report, bench)
+SUBCOMMANDS = (
+    theory,
+    simulate,
+    train,
+    label,
+    labels,
+    study_report,
+    sweep,
+    report,
+    bench,
+    reward_bench,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

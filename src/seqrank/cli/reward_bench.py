@@ -1,0 +1,198 @@
+"""`seqrank reward-bench`: what each scheme's answers teach the reward model, measured on
+saved trajectory pools without RL (pool, run, score)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from seqrank.cli.options import int_at_least, names, positive
+from seqrank.errors import UsageError
+from seqrank.feedback.schemes import SchemeName
+
+SCHEMES = [s.value for s in SchemeName]
+
+
+def _numbers(text: str) -> list[int]:
+    try:
+        values = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give whole numbers, comma-separated") from None
+    if not values:
+        raise argparse.ArgumentTypeError("give at least one number")
+    return values
+
+
+def add_parser(commands: Any) -> None:
+    bench = commands.add_parser(
+        "reward-bench",
+        help="reward learning per question, by scheme, on saved trajectory pools (no RL)",
+        description="The schemes' reward learning measured without RL's noise: build a pool "
+        "of real episodes (pool), run the grid of schemes x teachers x seeds (run), or score "
+        "labels exported from the labelling page (score). Measures on held-out segments: "
+        "preference accuracy, Spearman rank correlation, wrong inferred labels.",
+    )
+    actions = bench.add_subparsers(dest="action", required=True)
+    pool = actions.add_parser("pool", help="build a pool: a true-reward run's episodes + random")
+    pool.add_argument("--task", default="walker_walk")
+    pool.add_argument("--from-run", type=Path, help="take the episodes of this run directory")
+    pool.add_argument("--steps", type=positive, default=50_000, help="true-reward training steps")
+    pool.add_argument("--seed", type=int_at_least(0), default=0)
+    pool.add_argument("--random-episodes", type=int_at_least(0), default=5)
+    pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
+    pool.set_defaults(handler=run_pool)
+
+    grid = actions.add_parser("run", help="run the grid and print the table")
+    grid.add_argument("--pool", type=Path, action="append", required=True, help="repeatable")
+    grid.add_argument("--schemes", type=names(SCHEMES, "scheme"), default=SCHEMES)
+    grid.add_argument("--teachers", type=lambda t: t.split(","), default=["oracle"])
+    grid.add_argument("--seeds", type=positive, default=3, help="seeds 0..N-1 (3)")
+    grid.add_argument("--budgets", type=_numbers, default=[25, 50, 100, 200])
+    grid.add_argument("--session-questions", type=positive, default=25)
+    grid.add_argument("--heldout-segments", type=int_at_least(10), default=300)
+    grid.add_argument("--reward-epochs", type=positive, default=30)
+    grid.add_argument("--workers", type=positive, default=os.cpu_count() or 1)
+    grid.add_argument("--out", type=Path, default=Path("seqrank-out/reward-bench"))
+    grid.set_defaults(handler=run_grid)
+
+    score = actions.add_parser("score", help="score exported labels (JSONL) on a pool")
+    score.add_argument("labels", type=Path, help="a label file from `seqrank labels export`")
+    score.add_argument("--pool", type=Path, required=True, help="a pool of the same task")
+    score.add_argument("--seed", type=int_at_least(0), default=0)
+    score.set_defaults(handler=run_score)
+
+
+def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.rewardbench.pool import pool_from_run, save_pool
+
+    try:
+        run_path = args.from_run or _train_for_pool(args, err)
+        pool = pool_from_run(run_path, args.random_episodes, args.seed)
+    except (ValueError, FileNotFoundError) as problem:
+        raise UsageError(str(problem)) from None
+    save_pool(pool, args.out)
+    returns = pool.returns
+    out.print(
+        f"pool {args.out}: {len(pool)} episodes of {pool.task} (returns {returns.min():.0f} to "
+        f"{returns.max():.0f}, median {float(sorted(returns)[len(returns) // 2]):.0f})",
+        highlight=False,
+    )
+    return 0
+
+
+def _train_for_pool(args: argparse.Namespace, err: Console) -> Path:
+    """A true-reward run that keeps every episode (in `<out>.run/`)."""
+    from seqrank.config import resolve_config
+    from seqrank.training.runs import RunDir
+    from seqrank.training.trainer import Trainer
+
+    folder = args.out.with_suffix(".run")
+    settings = {"reward": "true", "steps": args.steps, "seed": args.seed, "device": "cpu"}
+    config = resolve_config(args.task, "small", {**settings, "episodes_kept": args.steps})
+    if (folder / "summary.json").exists():
+        return folder
+    run = RunDir.open(folder) if (folder / "config.json").exists() else None
+    trainer = Trainer(config, run or RunDir.create(folder, config, "cpu"))
+    state = run.load_checkpoint() if run else None
+    if state is not None:
+        trainer.load_checkpoint(state)
+    err.print(f"training on the true reward for {args.steps:,} steps in {folder}")
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err,
+    ) as progress:
+        bar = progress.add_task("pool run", total=args.steps, completed=trainer.counters.step)
+        trainer.progress = lambda step, live: progress.update(bar, completed=step)
+        trainer.train()
+    return folder
+
+
+def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.feedback.teachers import parse_teacher
+    from seqrank.rewardbench.bench import BenchSettings, RewardNet
+    from seqrank.rewardbench.grid import run_grid as grid
+    from seqrank.rewardbench.summary import format_table, plot_task, summarise
+
+    try:
+        for teacher in args.teachers:
+            if parse_teacher(teacher).kind != "scripted":
+                raise ValueError(f"teacher {teacher!r}: the grid asks scripted teachers only")
+        settings = BenchSettings(
+            tuple(args.budgets),
+            args.session_questions,
+            heldout_segments=args.heldout_segments,
+            net=RewardNet(epochs=args.reward_epochs),
+        )
+        with Progress(
+            TextColumn("[bold]cells"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=err,
+        ) as progress:
+            bar = progress.add_task("cells", total=None)
+            rows = grid(
+                args.pool,
+                args.schemes,
+                args.teachers,
+                list(range(args.seeds)),
+                settings,
+                args.out,
+                args.workers,
+                lambda done, total: progress.update(bar, completed=done, total=total),
+            )
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
+    summary = summarise(rows)
+    table = format_table(summary)
+    (args.out / "table.md").write_text(table)
+    (args.out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    for task in sorted({e["task"] for e in summary}):
+        plot_task(summary, task, args.out / f"curves_{task.replace(':', '-')}.png")
+    out.print(table, highlight=False, markup=False)
+    out.print(f"rows, table and curves in {args.out}", highlight=False)
+    return 0
+
+
+def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.feedback.replay import ReplaySource
+    from seqrank.rewardbench.bench import BenchSettings, Cell, run_cell
+    from seqrank.rewardbench.pool import load_pool
+
+    try:
+        pool = load_pool(args.pool)
+        source = ReplaySource.from_file(args.labels)
+        source.check_compatible(pool.task, pool.obs.shape[2], pool.action.shape[2])
+        # one budget per recorded session, so every session's labels are scored
+        sizes = _session_sizes(source)
+        budgets = tuple(int(sum(sizes[: k + 1])) for k in range(len(sizes)))
+        settings = BenchSettings(budgets, max(sizes))
+        scheme = source.labels.answers[0]["scheme"]
+        rows = run_cell(pool, Cell(scheme, "replay", args.seed), settings, source)
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
+    for row in rows:
+        wrong = "-" if row["inferred_wrong"] is None else f"{row['inferred_wrong']:.3f}"
+        out.print(
+            f"{row['questions']:>5} answers, {row['pairs']:>5} pairs: accuracy "
+            f"{row['accuracy']:.3f}, Spearman {row['spearman']:.3f}, wrong inferred {wrong}",
+            highlight=False,
+        )
+    return 0
+
+
+def _session_sizes(source: Any) -> list[int]:
+    counts: dict[tuple[str, int], int] = {}
+    for answer in source.labels.answers:
+        key = (answer["run"], answer["session"])
+        counts[key] = counts.get(key, 0) + 1
+    return [counts[key] for key in source.sessions]

@@ -1,0 +1,168 @@
+"""The reward-learning benchmark: what each scheme's answers teach the reward model, with
+no RL in the way.
+
+One cell is (pool, scheme, teacher, seed). It runs the training run's own feedback code on
+the pool's training episodes: sessions of `session_questions` questions, segments cut
+uniformly, the scripted teacher answering (B-Pref's margin from the pool's mean return),
+the scheme's transitive closure, and the reward ensemble trained (warm-started, as in a
+run) on every label so far. At each question budget it scores the model on a fixed sample
+of segments from held-out episodes:
+
+- `accuracy`: the fraction of held-out segment pairs (unequal true returns) that the
+  ensemble's mean predicted return orders as the true returns do;
+- `spearman`: the rank correlation of predicted and true segment returns;
+- `inferred_wrong`: the fraction of inferred labels (so far) that the true returns
+  contradict (None while nothing was inferred).
+
+Every scheme of a seed sees the same random streams (common random numbers), so their
+differences are not sampling luck.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from scipy import stats
+
+from seqrank.episodes import Segments
+from seqrank.feedback.labels import LabelStore
+from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
+from seqrank.feedback.sources import make_source
+from seqrank.reward.model import RewardModel
+from seqrank.rewardbench.pool import Pool
+
+
+@dataclass(frozen=True)
+class RewardNet:
+    """The reward ensemble and its training (the small preset's values by default)."""
+
+    ensemble: int = 3
+    hidden: int = 256
+    layers: int = 3
+    lr: float = 3e-4
+    epochs: int = 30
+    minibatch: int = 128
+    stop_accuracy: float = 0.97
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    budgets: tuple[int, ...] = (25, 50, 100, 200)
+    session_questions: int = 25
+    segment_length: int = 50
+    heldout_segments: int = 300
+    net: RewardNet = RewardNet()
+
+    def __post_init__(self) -> None:
+        if not self.budgets or list(self.budgets) != sorted(set(self.budgets)):
+            raise ValueError(f"budgets must rise strictly, got {list(self.budgets)}")
+        if self.budgets[0] < 1 or self.session_questions < 1:
+            raise ValueError("budgets and session questions must be at least 1")
+
+
+@dataclass(frozen=True)
+class Cell:
+    scheme: str
+    teacher: str
+    seed: int
+
+    def key(self, task: str) -> tuple[str, str, str, int]:
+        return task, self.scheme, self.teacher, self.seed
+
+
+def heldout_measures(model: RewardModel, heldout: Segments) -> dict[str, float]:
+    predicted = model.member_returns(heldout.features).mean(0)
+    truth = heldout.rewards.sum(1)
+    upper = np.triu_indices(len(truth), 1)
+    true_sign = np.sign(truth[:, None] - truth[None, :])[upper]
+    predicted_sign = np.sign(predicted[:, None] - predicted[None, :])[upper]
+    strict = true_sign != 0
+    return {
+        "accuracy": float((predicted_sign[strict] == true_sign[strict]).mean()),
+        "spearman": float(stats.spearmanr(predicted, truth).statistic),
+    }
+
+
+class _Tally:
+    def __init__(self) -> None:
+        self.asked = self.answered = self.inferred = self.inferred_wrong = 0
+
+    def add(self, stats_: Any) -> None:
+        self.asked += stats_.asked
+        self.answered += stats_.answered
+        self.inferred += stats_.inferred
+        self.inferred_wrong += stats_.inferred_wrong or 0
+
+
+def run_cell(
+    pool: Pool,
+    cell: Cell,
+    settings: BenchSettings,
+    source: FeedbackSource | None = None,
+) -> list[dict[str, Any]]:
+    """One row per budget reached. `source` replaces the scripted teacher (replayed labels);
+    it then stops early when its sessions run out."""
+    train, held = pool.split()
+    heldout = pool.heldout_segments(held, settings.heldout_segments, settings.segment_length)
+    episodes = pool.store(train)
+    margin = float(pool.returns[train].mean()) * settings.segment_length / pool.reward.shape[1]
+    rng = np.random.default_rng(cell.seed)
+    generator = torch.Generator().manual_seed(cell.seed)
+    torch.manual_seed(cell.seed)
+    net, cpu = settings.net, torch.device("cpu")
+    features = pool.obs.shape[2] + pool.action.shape[2]
+    model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
+    source = source if source is not None else make_source(cell.teacher)
+    plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length)
+    labels, tally, session, rows = LabelStore(), _Tally(), 0, []
+    started = time.perf_counter()
+    for budget in settings.budgets:
+        while tally.asked < budget and source.has_session(session):
+            questions = min(settings.session_questions, budget - tally.asked)
+            request = prepare_session(plan, questions, episodes, model, session, rng, False, margin)
+            segments, record = source.ask_session(request)
+            tally.add(store_session(segments, record, labels, session).stats)
+            session += 1
+        if not len(labels):
+            continue  # every answer so far was a skip: nothing to learn from
+        model.train(
+            *labels.tensors(cpu),
+            net.epochs,
+            net.minibatch,
+            net.stop_accuracy,
+            generator,
+            sync_every_step=False,
+        )
+        rows.append(_row(pool, cell, tally, len(labels), heldout, model, started))
+        if tally.asked < budget:
+            break  # a replayed file ran out
+    return rows
+
+
+def _row(
+    pool: Pool,
+    cell: Cell,
+    tally: _Tally,
+    pairs: int,
+    heldout: Segments,
+    model: RewardModel,
+    started: float,
+) -> dict[str, Any]:
+    wrong = tally.inferred_wrong / tally.inferred if tally.inferred else None
+    return {
+        "task": pool.task,
+        "scheme": cell.scheme,
+        "teacher": cell.teacher,
+        "seed": cell.seed,
+        "questions": tally.asked,
+        "answered": tally.answered,
+        "pairs": pairs,
+        "inferred": tally.inferred,
+        "inferred_wrong": wrong,
+        **heldout_measures(model, heldout),
+        "seconds": time.perf_counter() - started,
+    }

@@ -1,0 +1,106 @@
+"""Running the benchmark's grid: pools x teachers x seeds x schemes, cells in parallel
+processes, each finished cell's rows appended to `rows.jsonl` at once, so a killed grid
+continues where it stopped and never repeats a finished cell."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import asdict
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, run_cell
+from seqrank.rewardbench.pool import load_pool
+
+Progress = Callable[[int, int], None]  # cells done, cells in all
+
+
+def settings_record(settings: BenchSettings) -> dict[str, Any]:
+    return json.loads(json.dumps(asdict(settings)))
+
+
+def settings_from_record(record: dict[str, Any]) -> BenchSettings:
+    net = RewardNet(**record.pop("net"))
+    return BenchSettings(**{**record, "budgets": tuple(record["budgets"]), "net": net})
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    if not path.exists():
+        return []
+    rows = []
+    for line in path.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            break  # a line cut by a kill: the cells before it are complete
+    return rows
+
+
+def _check_settings(out: Path, settings: BenchSettings) -> None:
+    """A folder holds one grid's settings: continuing it with others would mix results."""
+    path, record = out / "settings.json", settings_record(settings)
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if saved != record:
+            changed = sorted(k for k in record if saved.get(k) != record[k])
+            raise ValueError(
+                f"{out} holds a grid with other settings ({', '.join(changed)} differ); "
+                "use another --out or the same settings"
+            )
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(record, indent=2) + "\n")
+
+
+def _cell_rows(pool_path: str, cell: Cell, record: dict[str, Any]) -> list[dict[str, Any]]:
+    import torch
+
+    torch.set_num_threads(1)  # one core per cell: the cells run side by side
+    rows = run_cell(load_pool(pool_path), cell, settings_from_record(dict(record)))
+    return [{**row, "pool": pool_path} for row in rows]
+
+
+def run_grid(
+    pools: list[Path],
+    schemes: list[str],
+    teachers: list[str],
+    seeds: list[int],
+    settings: BenchSettings,
+    out: Path,
+    workers: int,
+    progress: Progress | None = None,
+) -> list[dict[str, Any]]:
+    """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
+    _check_settings(out, settings)
+    tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
+    rows_path = out / "rows.jsonl"
+    rows = read_rows(rows_path)
+    rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
+    done = {(r["task"], r["scheme"], r["teacher"], r["seed"]) for r in rows}
+    todo = [
+        (str(p), Cell(scheme, teacher, seed))
+        for p, teacher, seed, scheme in product(pools, teachers, seeds, schemes)
+        if Cell(scheme, teacher, seed).key(tasks[str(p)]) not in done
+    ]
+    total, finished = len(todo) + len({k for k in done}), len(done)
+    if progress is not None:
+        progress(finished, total)
+    record = settings_record(settings)
+    with ProcessPoolExecutor(max(1, workers)) as executor:
+        running: set[Future[list[dict[str, Any]]]] = {
+            executor.submit(_cell_rows, path, cell, record) for path, cell in todo
+        }
+        while running:
+            complete, running = wait(running, return_when=FIRST_COMPLETED)
+            for future in complete:
+                new = future.result()
+                with rows_path.open("a") as handle:
+                    handle.write("".join(json.dumps(r) + "\n" for r in new))
+                rows.extend(new)
+                finished += 1
+                if progress is not None:
+                    progress(finished, total)
+    return rows

@@ -1,0 +1,119 @@
+"""The reward benchmark's table and curves, from its rows (one per cell and budget)."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from seqrank.feedback.schemes import SchemeName
+
+MEASURES = {
+    "accuracy": "held-out preference accuracy",
+    "spearman": "rank correlation (Spearman)",
+    "inferred_wrong": "wrong inferred labels (fraction)",
+}
+Group = tuple[str, str, str, int]  # task, teacher, scheme, questions
+
+
+def interval(values: list[float]) -> tuple[float, float, float]:
+    """Mean and its 95% t-interval over seeds (the mean twice for a single seed)."""
+    array = np.asarray(values, np.float64)
+    mean = float(array.mean())
+    if len(array) < 2:
+        return mean, mean, mean
+    half = float(stats.t.ppf(0.975, len(array) - 1) * array.std(ddof=1) / np.sqrt(len(array)))
+    return mean, mean - half, mean + half
+
+
+def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per task, teacher, scheme and budget: each measure's mean and 95% interval."""
+    groups: dict[Group, list[dict[str, Any]]] = defaultdict(list)
+    for row in rows:
+        groups[(row["task"], row["teacher"], row["scheme"], row["questions"])].append(row)
+    order = [s.value for s in SchemeName]
+    summary = []
+    for (task, teacher, scheme, questions), members in sorted(
+        groups.items(),
+        key=lambda item: (*item[0][:2], order.index(item[0][2]), item[0][3]),
+    ):
+        entry: dict[str, Any] = {
+            "task": task,
+            "teacher": teacher,
+            "scheme": scheme,
+            "questions": questions,
+            "seeds": len(members),
+            "pairs": float(np.mean([m["pairs"] for m in members])),
+        }
+        for measure in MEASURES:
+            values = [m[measure] for m in members if m[measure] is not None]
+            entry[measure] = interval(values) if values else None
+        summary.append(entry)
+    return summary
+
+
+def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None) -> str:
+    lines = [
+        "| task | teacher | questions | scheme | seeds | labelled pairs | accuracy [95% CI] "
+        "| Spearman [95% CI] | wrong inferred |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for e in summary:
+        if budgets is not None and e["questions"] not in budgets:
+            continue
+        wrong = "-" if e["inferred_wrong"] is None else f"{e['inferred_wrong'][0]:.3f}"
+        lines.append(
+            f"| {e['task']} | {e['teacher']} | {e['questions']} | {e['scheme']} | {e['seeds']} "
+            f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} | {wrong} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _cell(value: tuple[float, float, float] | None) -> str:
+    if value is None:
+        return "-"
+    mean, low, high = value
+    return f"{mean:.3f} [{low:.3f}, {high:.3f}]"
+
+
+def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
+    """Each measure against questions asked, one line per scheme with its 95% interval
+    shaded, one row of panels per teacher."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    entries = [e for e in summary if e["task"] == task]
+    teachers = list(dict.fromkeys(e["teacher"] for e in entries))
+    figure, axes = plt.subplots(
+        len(teachers),
+        len(MEASURES),
+        figsize=(4.6 * len(MEASURES), 3.6 * len(teachers)),
+        squeeze=False,
+    )
+    for row, teacher in zip(axes, teachers, strict=True):
+        for axis, (measure, title) in zip(row, MEASURES.items(), strict=True):
+            for scheme in dict.fromkeys(e["scheme"] for e in entries):
+                points = [
+                    (e["questions"], *e[measure])
+                    for e in entries
+                    if e["teacher"] == teacher and e["scheme"] == scheme and e[measure]
+                ]
+                if not points:
+                    continue
+                x, mean, low, high = (np.array(column) for column in zip(*points, strict=True))
+                (line,) = axis.plot(x, mean, marker="o", label=scheme)
+                axis.fill_between(x, low, high, color=line.get_color(), alpha=0.2)
+            axis.set_title(f"{teacher}: {title}", fontsize=10)
+            axis.set_xlabel("questions asked")
+            axis.grid(alpha=0.3)
+            axis.legend(fontsize=8)
+    figure.suptitle(f"{task}: what the reward model learns per question (95% intervals)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+    return path
