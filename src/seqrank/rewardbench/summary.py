@@ -111,7 +111,8 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
             axis.set_title(f"{teacher}: {title}", fontsize=10)
             axis.set_xlabel("questions asked")
             axis.grid(alpha=0.3)
-            axis.legend(fontsize=8)
+            if axis.lines:
+                axis.legend(fontsize=8)
     figure.suptitle(f"{task}: what the reward model learns per question (95% intervals)")
     figure.tight_layout()
     figure.savefig(path, dpi=100)
