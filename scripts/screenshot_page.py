@@ -14,7 +14,9 @@ from pathlib import Path
 import httpx
 from playwright.sync_api import sync_playwright
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "labelling"))
+from test_labelling_browser import CHROMIUM, CHROMIUM_ARGS
+
 from seqrank.labelling.app import (
     OfflineOptions,
     PageServer,
@@ -22,7 +24,6 @@ from seqrank.labelling.app import (
     open_hub,
     run_offline,
 )
-from test_labelling_browser import CHROMIUM, CHROMIUM_ARGS
 
 
 def main() -> None:
