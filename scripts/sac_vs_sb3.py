@@ -1,8 +1,9 @@
 """seqrank's SAC against Stable-Baselines3's, both on the true reward, at matched sizes.
 
     .venv/bin/pip install -e '.[compare]'      # Stable-Baselines3, for this script only
-    .venv/bin/python scripts/sac_vs_sb3.py run --out results/sac-vs-sb3
-    .venv/bin/python scripts/sac_vs_sb3.py report --out results/sac-vs-sb3
+    .venv/bin/python scripts/sac_vs_sb3.py run --runs seqrank-out/sac-vs-sb3
+    .venv/bin/python scripts/sac_vs_sb3.py report --runs seqrank-out/sac-vs-sb3 \
+        --out results/sac-vs-sb3
 
 `run` trains every (task, implementation, seed) that has no result yet, `--workers` at a
 time, each on one thread; a killed command continues where it stopped (seqrank runs resume
@@ -17,8 +18,9 @@ orthogonal initialisation, log-std in [-5, 2]); SB3 its defaults (temperature le
 = the shared 5e-4, PyTorch's initialisation, log-std in [-20, 2]). `--variant NAME:K=V,...`
 adds a seqrank run with other `seqrank train` settings, to find what explains a gap.
 
-`report` writes `README.md` (IQM of the final return per task and implementation with a 95%
-bootstrap interval, and the mean curve) and `curves.png` in `--out`.
+`report` writes `table.md` (IQM of the final return per task and implementation with a 95%
+bootstrap interval), `curves.png` (mean curves with 95% intervals) and `curves.json` (every
+run's evaluation curve) in `--out`.
 """
 
 from __future__ import annotations
@@ -85,7 +87,7 @@ def seqrank_curve(folder: Path) -> list[tuple[int, float]] | None:
 
 
 def run_job(job: Job, args: argparse.Namespace) -> str:
-    folder = args.out / "runs" / job.name
+    folder = args.runs / job.name
     result = folder / "curve.json"
     if result.exists():
         return f"{job.name}: done before"
@@ -127,7 +129,7 @@ def jobs(args: argparse.Namespace) -> list[Job]:
 
 def command_run(args: argparse.Namespace) -> None:
     todo = jobs(args)
-    print(f"{len(todo)} runs, {args.workers} at a time, results in {args.out}/runs", flush=True)
+    print(f"{len(todo)} runs, {args.workers} at a time, in {args.runs}", flush=True)
     with ThreadPoolExecutor(args.workers) as pool:
         for line in pool.map(lambda job: run_job(job, args), todo):
             print(line, flush=True)
@@ -203,12 +205,17 @@ def command_report(args: argparse.Namespace) -> None:
     from seqrank.report.stats import iqm, stratified_bootstrap_ci
 
     results: dict[tuple[str, str], list[list[tuple[int, float]]]] = {}
-    for path in sorted((args.out / "runs").glob("*/*/curve.json")):
+    every: dict[str, Any] = {}
+    for path in sorted(args.runs.glob("*/*/curve.json")):
         impl = path.parent.name.rsplit("_seed", 1)[0]
-        curve = [tuple(p) for p in json.loads(path.read_text())["curve"]]
+        record = json.loads(path.read_text())
+        curve = [tuple(p) for p in record["curve"]]
         results.setdefault((path.parent.parent.name, impl), []).append(curve)  # type: ignore[arg-type]
+        every[f"{path.parent.parent.name}/{path.parent.name}"] = record
     if not results:
-        raise SystemExit(f"no finished runs under {args.out / 'runs'}")
+        raise SystemExit(f"no finished runs under {args.runs}")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "curves.json").write_text(json.dumps(every, indent=1) + "\n")
     rng = np.random.default_rng(0)
     lines = [
         "| task | implementation | seeds | final return: IQM [95% CI] | mean ± std |",
@@ -264,7 +271,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
     run = commands.add_parser("run", help="train every run that has no result yet")
-    run.add_argument("--out", type=Path, default=Path("results/sac-vs-sb3"))
+    run.add_argument("--runs", type=Path, default=Path("seqrank-out/sac-vs-sb3"))
     run.add_argument("--tasks", type=lambda t: t.split(","), default=["walker_walk", "cheetah_run"])
     run.add_argument("--seeds", type=int, default=5)
     run.add_argument("--steps", type=int, default=50_000)
@@ -273,6 +280,7 @@ def main() -> None:
     run.add_argument("--workers", type=int, default=2)
     run.add_argument("--variant", action="append", default=[], metavar="NAME:K=V,...")
     report = commands.add_parser("report", help="the table and the curves of finished runs")
+    report.add_argument("--runs", type=Path, default=Path("seqrank-out/sac-vs-sb3"))
     report.add_argument("--out", type=Path, default=Path("results/sac-vs-sb3"))
     report.add_argument("--bootstrap", type=int, default=5000)
     sb3 = commands.add_parser("sb3-run", help="(internal) one Stable-Baselines3 run")
