@@ -81,7 +81,7 @@ def _add_study(modes: Any) -> None:
     study.add_argument("--participant", required=True, help="participant id, e.g. p01")
     study.add_argument("--study-dir", type=Path, default=Path("seqrank-out/study"))
     study.add_argument("--methods", default=",".join(("pairwise", "sequential", "root")))
-    add_run_options(study)
+    add_run_options(study, wandb=False)
     _server_options(study)
 
 

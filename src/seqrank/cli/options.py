@@ -86,8 +86,17 @@ def given_settings(args: argparse.Namespace) -> dict[str, Any]:
     return {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
 
 
-def add_run_options(parser: argparse.ArgumentParser) -> None:
-    """--scale, --out, --resume and one option per TrainConfig field."""
+def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None:
+    """--scale, --out, --resume, --wandb (unless `wandb` is False) and one option per
+    TrainConfig field."""
+    if wandb:
+        parser.add_argument(
+            "--wandb",
+            metavar="PROJECT",
+            default=argparse.SUPPRESS,
+            help="also log the metrics to this Weights & Biases project (WANDB_MODE=offline "
+            "keeps them on disk); needs pip install 'seqrank[wandb]'",
+        )
     parser.add_argument(
         "--scale",
         choices=("auto", *SCALES),

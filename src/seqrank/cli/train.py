@@ -81,7 +81,10 @@ def prepare_run(
 
     config_runtime(config, new.device)  # before anything is written
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
-    run = RunDir.create(path, config, str(new.device))
+    wandb = getattr(args, "wandb", None)
+    if wandb is not None:
+        _check_wandb(wandb)
+    run = RunDir.create(path, config, str(new.device), wandb)
     trainer = trainer_cls(config, run)
     err.print(f"run directory: {run.path} ({new.scale} preset, device {new.device})")
     return trainer, config, run
@@ -89,8 +92,8 @@ def prepare_run(
 
 def _resume_run(args: argparse.Namespace, err: Console, trainer_cls: Any) -> Any:
     given = given_settings(args)
-    if given or hasattr(args, "out") or hasattr(args, "scale"):
-        changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale"
+    if given or hasattr(args, "out") or hasattr(args, "scale") or hasattr(args, "wandb"):
+        changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale/--wandb"
         raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
     run = RunDir.open(args.resume)
     config = run.read_config()
@@ -101,6 +104,15 @@ def _resume_run(args: argparse.Namespace, err: Console, trainer_cls: Any) -> Any
         run.truncate_metrics(0)
     err.print(f"resuming {run.path} at step {trainer.counters.step}")
     return trainer, config, run
+
+
+def _check_wandb(project: str) -> None:
+    if not project.strip():
+        raise ValueError("--wandb needs a project name")
+    try:
+        import wandb  # noqa: F401
+    except ImportError:
+        raise ValueError("--wandb needs Weights & Biases: pip install 'seqrank[wandb]'") from None
 
 
 def _run_name(config: TrainConfig) -> str:

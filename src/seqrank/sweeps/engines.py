@@ -23,7 +23,9 @@ from seqrank.sweeps.spec import PlannedRun, Sweep
 ENGINES = ("local", "ray")
 
 
-def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]:
+def train_run(
+    path: str, config: dict[str, Any], threads: int, wandb: str | None = None
+) -> dict[str, Any]:
     """Train (or finish, or skip) one run; runs inside a worker process."""
     import torch
 
@@ -48,7 +50,7 @@ def train_run(path: str, config: dict[str, Any], threads: int) -> dict[str, Any]
             run.truncate_metrics(0)
         status = "resumed"
     else:
-        run = RunDir.create(directory, settings, settings.device)
+        run = RunDir.create(directory, settings, settings.device, wandb)
         trainer = Trainer(settings, run)
         status = "trained"
     return {"status": status, "summary": trainer.train()}
@@ -92,7 +94,7 @@ class LocalBackend:
         self.pending: set[Future[dict[str, Any]]] = set()
 
     def submit(self, run: PlannedRun, path: Path) -> Any:
-        future = self.pool.submit(train_run, str(path), run.config.as_dict(), 1)
+        future = self.pool.submit(train_run, str(path), run.config.as_dict(), 1, run.wandb)
         self.pending.add(future)
         return future
 
@@ -129,7 +131,7 @@ class RayBackend:
         self.pending: list[Any] = []
 
     def submit(self, run: PlannedRun, path: Path) -> Any:
-        ref = self.task.remote(str(path.resolve()), run.config.as_dict(), 1)
+        ref = self.task.remote(str(path.resolve()), run.config.as_dict(), 1, run.wandb)
         self.pending.append(ref)
         return ref
 

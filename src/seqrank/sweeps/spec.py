@@ -12,6 +12,7 @@ teachers = ["oracle"]             # optional, default ["oracle"]
 baselines = ["true", "none"]      # optional: the true-reward agent, the no-feedback floor
 seeds = 3                         # a count (0, 1, 2) or a list [0, 5, 7]
 retries = 1                       # optional: attempts after a failure, default 1
+wandb = "my-project"              # optional: every run also logs to this W&B project
 
 [overrides]                       # any `seqrank train` setting, for every run
 steps = 100000
@@ -54,6 +55,7 @@ TOP_KEYS = (
     "baselines",
     "seeds",
     "retries",
+    "wandb",
     "overrides",
     "task_overrides",
     "variants",
@@ -69,6 +71,7 @@ _KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in f
 class PlannedRun:
     name: str  # relative path under <out>/runs
     config: TrainConfig
+    wandb: str | None = None  # a W&B project that also gets the run's metrics
 
 
 @dataclass(frozen=True)
@@ -108,6 +111,9 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
     if scale not in ("auto", "paper", "small"):
         raise ValueError(f"{source}: scale {scale!r}; accepted: auto, paper, small")
     device = data.get("device", "auto")
+    wandb = data.get("wandb")
+    if wandb is not None and (not isinstance(wandb, str) or not wandb.strip()):
+        raise ValueError(f"{source}: wandb must be a project name, got {wandb!r}")
     overrides = _settings(data.get("overrides", {}), f"{source} [overrides]")
     per_task = data.get("task_overrides", {})
     if not isinstance(per_task, dict):
@@ -151,7 +157,7 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
             raise ValueError(f"{where}: {problem}") from None
         suffix = f"_{variant}" if variant else ""
         folder = task.replace(":", "-")
-        runs.append(PlannedRun(f"{folder}/{method}{suffix}_seed{seed}", config))
+        runs.append(PlannedRun(f"{folder}/{method}{suffix}_seed{seed}", config, wandb))
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)

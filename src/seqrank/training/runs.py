@@ -6,6 +6,7 @@ metrics.jsonl    one JSON object per line, each with `step` and `kind`
                  (`eval`, `feedback`, `train`); keys documented in the README
 checkpoint.pt    the latest checkpoint (written atomically at an episode end)
 summary.json     final numbers; returns.png the evaluation curve
+events.out.tfevents.*  the same metrics for TensorBoard; wandb.json with `--wandb`
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 import torch
 
 from seqrank.config import TrainConfig
+from seqrank.training.sinks import MetricSink, TensorBoardSink, WandbSink
 
 PACKAGES = ("seqrank", "torch", "numpy", "mujoco", "dm-control", "metaworld", "gymnasium")
 
@@ -31,6 +33,13 @@ PACKAGES = ("seqrank", "torch", "numpy", "mujoco", "dm-control", "metaworld", "g
 class RunDir:
     def __init__(self, path: Path):
         self.path = path
+        self._sinks: list[MetricSink] | None = None  # opened at the first row
+        self._purge_step: int | None = None
+
+    @property
+    def wandb_project(self) -> str | None:
+        meta = self.path / "meta.json"
+        return json.loads(meta.read_text()).get("wandb") if meta.exists() else None
 
     @property
     def config_path(self) -> Path:
@@ -45,7 +54,11 @@ class RunDir:
         return self.path / "checkpoint.pt"
 
     @classmethod
-    def create(cls, path: Path, config: TrainConfig, device: str) -> RunDir:
+    def create(
+        cls, path: Path, config: TrainConfig, device: str, wandb: str | None = None
+    ) -> RunDir:
+        """A new run directory; `wandb` names a W&B project that also gets the metrics
+        (kept in meta.json, so a resumed run logs there too)."""
         if path.exists() and any(path.iterdir()):
             raise FileExistsError(
                 f"run directory {path} is not empty; resume it with --resume {path} "
@@ -54,7 +67,7 @@ class RunDir:
         path.mkdir(parents=True, exist_ok=True)
         run = cls(path)
         _write_json(run.config_path, config.as_dict())
-        _write_json(path / "meta.json", _meta(config, device))
+        _write_json(path / "meta.json", {**_meta(config, device), "wandb": wandb})
         run.metrics_path.touch()
         return run
 
@@ -73,6 +86,21 @@ class RunDir:
     def append_metrics(self, row: dict[str, Any]) -> None:
         with self.metrics_path.open("a") as handle:
             handle.write(json.dumps(row) + "\n")
+        for sink in self._open_sinks():
+            sink.write(row)
+
+    def _open_sinks(self) -> list[MetricSink]:
+        if self._sinks is None:
+            self._sinks = [TensorBoardSink(self.path, self._purge_step)]
+            project = self.wandb_project
+            if project:
+                self._sinks.append(WandbSink(project, self.path, self.read_config().as_dict()))
+        return self._sinks
+
+    def close_sinks(self) -> None:
+        for sink in self._sinks or []:
+            sink.close()
+        self._sinks = None
 
     def read_metrics(self) -> list[dict[str, Any]]:
         if not self.metrics_path.exists():
@@ -85,6 +113,7 @@ class RunDir:
         rows of later steps, and beyond the first `rows` rows when the checkpoint counted
         them (an evaluation finished in the background is logged after its step)."""
         kept = [row for row in self.read_metrics()[:rows] if row["step"] <= step]
+        self._purge_step = step + 1  # TensorBoard drops its events after the checkpoint too
         tmp = self.metrics_path.with_suffix(".tmp")
         tmp.write_text("".join(json.dumps(row) + "\n" for row in kept))
         os.replace(tmp, self.metrics_path)

@@ -176,6 +176,7 @@ class Trainer:
                 return run_loop(self)
         finally:
             self.evaluations.close()
+            self.run_dir.close_sinks()
 
     def save_checkpoint(self) -> None:
         save_checkpoint(self)
