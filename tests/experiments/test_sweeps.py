@@ -84,13 +84,17 @@ def test_baselines_add_one_run_per_task_variant_and_seed():
     assert by_name["walker_walk/true-reward_seed1"].reward == "true"
     assert by_name["block-place/no-feedback_seed0"].reward == "none"
     assert by_name["walker_walk/root_pebble_mistake_seed1"].reward == "learned"
-    only = expand({"tasks": ["walker_walk"], "baselines": ["true"], "seeds": 5, "device": "cpu"})
+    only = expand(
+        {"tasks": ["walker_walk"], "baselines": ["true"], "seeds": 5, "device": "cpu", "wandb": "p"}
+    )
     assert [r.name for r in only.runs] == [f"walker_walk/true-reward_seed{s}" for s in range(5)]
+    assert {r.wandb for r in only.runs} == {"p"} and {r.wandb for r in sweep.runs} == {None}
 
 
 @pytest.mark.parametrize(
     ("data", "message"),
     [
+        ({"tasks": ["walker_walk"], "schemes": ["root"], "wandb": 3}, "wandb must be a project"),
         ({"tasks": ["walker_walk"], "baselines": ["oracle"]}, "unknown baseline 'oracle'; "),
         ({"tasks": ["walker_walk"], "baselines": ["learned"]}, "accepted: true, none"),
         ({"tasks": ["walker_walk"], "baselines": ["true", "true"]}, "lists a name twice"),
