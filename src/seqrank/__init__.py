@@ -1,4 +1,46 @@
 """seqrank: reinforcement learning from human preferences with sequential and root
-pairwise comparison and transitive label augmentation (SeqRank, NeurIPS 2023)."""
+pairwise comparison and transitive label augmentation (SeqRank, NeurIPS 2023).
+
+The public Python API (documented in the README; `help(seqrank.<name>)`):
+
+- asking: `run_scheme`, `close_preferences`, `Answer`, `SCHEMES`;
+- training: `make_config`, `train`, `TrainConfig`, `JudgeSource`, `Segment`,
+  `FeedbackSource` (the protocol a custom source implements), `SessionRequest`;
+- looking: `load_run`, `Run`, `make_env`.
+
+Names are loaded on first use, so `import seqrank` stays light.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
 
 __version__ = "0.1.0"
+
+_PUBLIC = {
+    "run_scheme": "seqrank.api",
+    "close_preferences": "seqrank.api",
+    "make_config": "seqrank.api",
+    "train": "seqrank.api",
+    "load_run": "seqrank.api",
+    "Run": "seqrank.api",
+    "JudgeSource": "seqrank.api",
+    "Segment": "seqrank.api",
+    "Answer": "seqrank.types",
+    "TrainConfig": "seqrank.config",
+    "FeedbackSource": "seqrank.feedback.session",
+    "SessionRequest": "seqrank.feedback.session",
+    "make_env": "seqrank.envs",
+}
+__all__ = ["SCHEMES", "__version__", *_PUBLIC]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "SCHEMES":
+        from seqrank.feedback.schemes import SchemeName
+
+        return tuple(s.value for s in SchemeName)
+    if name in _PUBLIC:
+        return getattr(import_module(_PUBLIC[name]), name)
+    raise AttributeError(f"module 'seqrank' has no attribute {name!r}")

@@ -72,6 +72,7 @@ def _metaworld_tasks() -> set[str]:
 
 
 def make_env(name: str, seed: int = 0) -> SimEnv:
+    """The environment of task `name` (as `--task` accepts it), seeded with `seed`."""
     suite_name, task = canonical_task(name)
     if suite_name == "dmc":
         return DMCEnv(task, seed)

@@ -38,6 +38,9 @@ class SessionRequest:
 
 
 class FeedbackSource(Protocol):
+    """Who answers a run's questions: anything with these three methods (a scripted
+    teacher, a person at the labelling page, replayed labels, `seqrank.JudgeSource`)."""
+
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         """Answer a session; returns the pool the record's segment ids index into."""
         ...

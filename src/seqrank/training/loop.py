@@ -11,7 +11,7 @@ learned reward; the baselines of `RewardSignal` skip what they do not need),
   of the replay buffer; after the first session only, the critic reset; and the agent
   update of the backbone (PEBBLE: the agent's own; MRN: with a meta reward step);
 - evaluation every `eval_every` steps, a `train` row every 1 000 steps, and a checkpoint
-  at the end of an episode once `checkpoint_every` steps have passed.
+  at the end of an episode once `checkpoint_every` steps have passed (and at the last step).
 
 Every episode and evaluation episode is seeded from the run seed and its index, and all
 other randomness comes from one numpy and one torch generator that are checkpointed, so a
@@ -57,6 +57,8 @@ def run_loop(t: Trainer) -> dict[str, Any]:
             t.progress(c.step, metrics.live(c))
         if episode_over and c.step - c.last_checkpoint_step >= config.checkpoint_every:
             t.save_checkpoint()
+    if c.last_checkpoint_step != c.step:  # a finished run always leaves its final policy
+        t.save_checkpoint()
     summary = metrics.summary(config, c, t.run_dir.read_metrics())
     t.run_dir.write_summary(summary)
     return summary
