@@ -62,7 +62,9 @@ def add_parser(commands: Any) -> None:
         help="also train the fast path for the whole run length and time it",
     )
     bench.add_argument(
-        "--out", type=Path, help="output path without suffix (default: results/bench-<device>)"
+        "--out",
+        type=Path,
+        help="output path without suffix (default: seqrank-out/bench/bench-<device>)",
     )
     bench.set_defaults(handler=run)
 
@@ -91,7 +93,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         )
     result["command"] = "seqrank " + shlex.join(args.command_line)
     result["host"] = {"machine": platform.machine(), "cpus": os.cpu_count()}
-    path = args.out or Path("results") / f"bench-{device.type}"
+    path = args.out or Path("seqrank-out/bench") / f"bench-{device.type}"
     path.parent.mkdir(parents=True, exist_ok=True)
     markdown = format_markdown(result)
     path.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")
