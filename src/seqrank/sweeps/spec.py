@@ -127,40 +127,57 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
         from seqrank.training.runtime import resolve_device
 
         scale = resolve_scale(scale, resolve_device(device))
-    runs = []
-    learned = product(axes["schemes"], axes["backbones"], axes["teachers"])
-    methods = [
-        (
-            f"{scheme}_{backbone}_{teacher}",
-            {"scheme": scheme, "backbone": backbone, "teacher": teacher},
-        )
-        for scheme, backbone, teacher in learned
-    ]
-    methods += [(b.method, {"reward": b.value}) for b in baselines]
-    for task, (method, axis_values), (variant, extra), seed in product(
-        axes["tasks"], methods, variants, seeds
-    ):
-        settings = {
-            **overrides,
-            **_settings(per_task.get(task, {}), f"{source} [task_overrides.{task}]"),
-            **extra,
-            **axis_values,
-            "seed": seed,
-            "device": device,
-        }
-        where = f"{source}: run {task} {method} {variant or ''} seed {seed}"
-        try:
-            config = resolve_config(task, scale, settings)
-            if device in ("cpu", "cuda"):  # with auto the path depends on where it runs
-                _check_path(config, device)
-        except (ValueError, TypeError) as problem:
-            raise ValueError(f"{where}: {problem}") from None
-        suffix = f"_{variant}" if variant else ""
-        folder = task.replace(":", "-")
-        runs.append(PlannedRun(f"{folder}/{method}{suffix}_seed{seed}", config, wandb))
+    methods = _methods(axes, baselines)
+    grid = product(axes["tasks"], methods, variants, seeds)
+    planned = _Planned(source, scale, device, wandb, overrides, per_task)
+    runs = [planned.run(task, method, variant, seed) for task, method, variant, seed in grid]
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)
+
+
+Method = tuple[str, dict[str, str]]  # a run name's method part, and its axis settings
+
+
+def _methods(axes: dict[str, list[str]], baselines: list[RewardSignal]) -> list[Method]:
+    learned = product(axes["schemes"], axes["backbones"], axes["teachers"])
+    methods = [(f"{s}_{b}_{t}", {"scheme": s, "backbone": b, "teacher": t}) for s, b, t in learned]
+    return methods + [(b.method, {"reward": b.value}) for b in baselines]
+
+
+@dataclass(frozen=True)
+class _Planned:
+    """What every run of a sweep shares; `run` checks and names one of them."""
+
+    source: str
+    scale: str
+    device: str
+    wandb: str | None
+    overrides: dict[str, Any]
+    per_task: dict[str, Any]
+
+    def run(
+        self, task: str, method: Method, variant: tuple[str | None, dict[str, Any]], seed: int
+    ) -> PlannedRun:
+        (name, axis_values), (variant_name, extra) = method, variant
+        settings = {
+            **self.overrides,
+            **_settings(self.per_task.get(task, {}), f"{self.source} [task_overrides.{task}]"),
+            **extra,
+            **axis_values,
+            "seed": seed,
+            "device": self.device,
+        }
+        where = f"{self.source}: run {task} {name} {variant_name or ''} seed {seed}"
+        try:
+            config = resolve_config(task, self.scale, settings)
+            if self.device in ("cpu", "cuda"):  # with auto the path depends on where it runs
+                _check_path(config, self.device)
+        except (ValueError, TypeError) as problem:
+            raise ValueError(f"{where}: {problem}") from None
+        suffix = f"_{variant_name}" if variant_name else ""
+        folder = task.replace(":", "-")
+        return PlannedRun(f"{folder}/{name}{suffix}_seed{seed}", config, self.wandb)
 
 
 def _check_path(config: TrainConfig, device: str) -> None:
