@@ -1,5 +1,5 @@
 """The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
-report, bench, reward-bench."""
+report, bench, reward-bench, watch."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ import seqrank.cli.study_report as study_report
 import seqrank.cli.sweep as sweep
 import seqrank.cli.theory as theory
 import seqrank.cli.train as train
+import seqrank.cli.watch as watch
 from seqrank import __version__
 from seqrank.cli.options import Parser
 from seqrank.errors import UsageError
@@ -35,6 +36,7 @@ SUBCOMMANDS = (
     report,
     bench,
     reward_bench,
+    watch,
 )
 
 

@@ -9,33 +9,17 @@ and written atomically, so a clip file is either complete or absent.
 from __future__ import annotations
 
 import itertools
-import os
 import queue
 import threading
 from collections.abc import Callable
 from concurrent.futures import Future
 from pathlib import Path
 
-import av
 import numpy as np
 
+from seqrank.video import encode_mp4
+
 URGENT, AHEAD = 0, 1
-
-
-def encode_mp4(frames: np.ndarray, path: Path, fps: int) -> None:
-    """Write RGB frames (T, H, W, 3) as an H.264 mp4 that browsers play (yuv420p, faststart)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.part")
-    height, width = frames.shape[1:3]
-    with av.open(str(partial), mode="w", format="mp4", options={"movflags": "+faststart"}) as out:
-        stream = out.add_stream("libx264", rate=fps)
-        stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
-        stream.options = {"crf": "20", "preset": "veryfast"}
-        for frame in frames:
-            image = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
-            out.mux(stream.encode(image))
-        out.mux(stream.encode(None))
-    os.replace(partial, path)
 
 
 # Frames for a segment id: (states, context) -> frames; built in the worker thread.
