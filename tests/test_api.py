@@ -60,9 +60,10 @@ def test_the_examples_run(tmp_path):
     assert "asked 3" in asked
     closed = _example(str(EXAMPLES / "close_a_graph.py"), cwd=tmp_path)
     assert "6 answered, 1 inferred: [(3, 5)]" in closed and "1 cycle(s) over 3" in closed
-    trained = _example(str(EXAMPLES / "train_with_a_judge.py"), "--out", "judge", cwd=tmp_path)
+    judge = str(EXAMPLES / "train_with_a_judge.py")
+    trained = _example(judge, "--out", "judge", "--steps", "2100", cwd=tmp_path)
     assert "asked 30" in trained
     run = seqrank.load_run(tmp_path / "judge")
-    assert run.summary is not None and [s for s, _ in run.evaluations()][-1] == 2_500
+    assert run.summary is not None and [s for s, _ in run.evaluations()][-1] == 2_100
     looked = _example(str(EXAMPLES / "load_a_run.py"), "judge", cwd=tmp_path)
     assert "one more episode with the saved policy: return" in looked

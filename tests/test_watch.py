@@ -22,11 +22,11 @@ def test_watch_writes_the_episodes_the_policy_plays(tmp_path, capsys, task):
     config = resolve_config(task, "small", settings)
     run(tmp_path / "run", config)
     out = tmp_path / "look"
-    args = ["watch", str(tmp_path / "run"), "--episodes", "2", "--size", "64", "--out", str(out)]
+    args = ["watch", str(tmp_path / "run"), "--episodes", "1", "--size", "64", "--out", str(out)]
     assert main(args) == 0
     printed = capsys.readouterr().out
     env = make_env(task, config.seed)
-    seeds = [episode_seed(config.seed, 2, k) for k in range(2)]
+    seeds = [episode_seed(config.seed, 2, 0)]
     expected = evaluate_policy(load_policy(tmp_path / "run", env), env, seeds, torch.Generator())
     for k, value in enumerate(expected.returns, 1):
         assert f"episode {k}: return {value:.1f}" in printed  # the same deterministic episodes
@@ -34,7 +34,7 @@ def test_watch_writes_the_episodes_the_policy_plays(tmp_path, capsys, task):
         stream = video.streams.video[0]
         frames = sum(1 for _ in video.decode(stream))
         assert (stream.width, stream.height) == (64, 64 + 22)  # frame + caption
-    assert frames == 2 * env.episode_length
+    assert frames == env.episode_length
     assert (out / "contact_sheet.png").read_bytes()[:4] == b"\x89PNG"
 
 

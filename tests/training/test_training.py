@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from support.runs import resume_after_kill, run, tiny_config, without_timing
 
@@ -27,6 +28,24 @@ def test_smoke_run_gets_through_every_phase(finished):
     assert feedback[0]["pairs_per_question"] >= 1
     summary = (finished.run_dir.path / "summary.json").read_text()
     assert '"asked": 30' in summary
+
+
+def tensorboard_events(directory):
+    accumulator = EventAccumulator(str(directory))
+    accumulator.Reload()
+    return {name: accumulator.Scalars(name) for name in accumulator.Tags()["scalars"]}
+
+
+def test_every_run_writes_tensorboard_events_matching_its_metrics(finished):
+    rows = finished.run_dir.read_metrics()
+    events = tensorboard_events(finished.run_dir.path)
+    evals = [r for r in rows if r["kind"] == "eval"]
+    assert [(e.step, e.value) for e in events["eval/return"]] == [
+        (r["step"], pytest.approx(r["eval_return"])) for r in evals
+    ]
+    feedback = [r for r in rows if r["kind"] == "feedback"]
+    assert [e.step for e in events["feedback/pairs_per_question"]] == [r["step"] for r in feedback]
+    assert "reward/heldout_accuracy" in events and "losses/critic" in events
 
 
 def test_same_seed_same_metrics(finished, tmp_path):
@@ -54,6 +73,10 @@ def test_resumed_run_ends_with_the_same_numbers(finished, tmp_path):
         resumed.agent.critic.parameters(), finished.agent.critic.parameters(), strict=True
     ):
         assert torch.equal(a, b)
+    # TensorBoard dropped the events after the checkpoint too: each step once
+    steps = [e.step for e in tensorboard_events(resumed.run_dir.path)["losses/critic"]]
+    rows = resumed.run_dir.read_metrics()
+    assert steps == [r["step"] for r in rows if r["kind"] == "train"]
 
 
 def test_mrn_backbone_with_equal_labels(tmp_path):
