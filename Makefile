@@ -34,8 +34,10 @@ browser:
 	@command -v chromium >/dev/null || { $(SUDO) apt-get update -qq && \
 		DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq chromium >/dev/null; }
 
+# Two workers, one torch thread each (the learning thresholds were measured with one
+# thread); a file's tests stay on one worker, so module fixtures are built once.
 pytest: $(STAMP) browser
-	$(PY) -m pytest
+	OMP_NUM_THREADS=1 $(PY) -m pytest -n 2 --dist loadfile
 
 test: lint typecheck pytest
 

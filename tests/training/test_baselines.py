@@ -7,7 +7,7 @@ import torch
 
 from seqrank.buffer import ReplayBuffer
 from seqrank.config import resolve_config
-from support.runs import resume_after_kill, run, tiny_config, without_timing
+from support.runs import run, tiny_config
 
 
 def test_the_buffer_hands_out_the_column_it_trains_on():
@@ -45,17 +45,6 @@ def test_a_no_feedback_run_pretrains_then_learns_the_untrained_reward_model(tmp_
     obs, action = trainer.replay.obs[:size], trainer.replay.action[:size]
     expected = trainer.reward_model.reward(obs, action)
     assert torch.allclose(trainer.replay.reward[:size], expected, atol=1e-6)
-
-
-def test_a_killed_no_feedback_run_resumes_to_the_same_numbers(tmp_path):
-    """The no-feedback run relabels and resets its critic once, at a given step; the
-    true-reward run has no step of its own (its loop is the plain one, resumed elsewhere)."""
-    config = tiny_config(reward="none")
-    resumed, _ = resume_after_kill(tmp_path, config)
-    straight = run(tmp_path / "straight", config)
-    assert without_timing(resumed.run_dir.read_metrics()) == without_timing(
-        straight.run_dir.read_metrics()
-    )
 
 
 def test_the_block_task_has_a_true_reward_dqn_baseline(tmp_path):
