@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.envs import canonical_task
+from seqrank.rows import read_rows
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ def collect_runs(folder: Path) -> list[RunResult]:
             continue  # not a run directory of ours (or a broken one): nothing to report
         if "scheme" not in config or "task" not in config:
             continue
-        rows = _metrics(directory / "metrics.jsonl")
+        rows = read_rows(directory / "metrics.jsonl")
         evals = [r for r in rows if r.get("kind") == "eval"]
         curve = tuple(
             (int(r["step"]), float(r["eval_return"]), float(r.get("eval_success_rate", 0.0)))
@@ -100,15 +101,3 @@ def collect_runs(folder: Path) -> list[RunResult]:
     if not results:
         raise ValueError(f"{folder} holds no run directories (no config.json of a seqrank run)")
     return results
-
-
-def _metrics(path: Path) -> list[dict[str, Any]]:
-    if not path.exists():
-        return []
-    rows = []
-    for line in path.read_text().splitlines():
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError:
-            break  # a line cut by a kill: everything before it is good
-    return rows

@@ -14,6 +14,7 @@ from typing import Any
 
 from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, run_cell
 from seqrank.rewardbench.pool import load_pool
+from seqrank.rows import read_rows
 
 Progress = Callable[[int, int], None]  # cells done, cells in all
 
@@ -25,18 +26,6 @@ def settings_record(settings: BenchSettings) -> dict[str, Any]:
 def settings_from_record(record: dict[str, Any]) -> BenchSettings:
     net = RewardNet(**record.pop("net"))
     return BenchSettings(**{**record, "budgets": tuple(record["budgets"]), "net": net})
-
-
-def read_rows(path: Path) -> list[dict[str, Any]]:
-    if not path.exists():
-        return []
-    rows = []
-    for line in path.read_text().splitlines():
-        try:
-            rows.append(json.loads(line))
-        except json.JSONDecodeError:
-            break  # a line cut by a kill: the cells before it are complete
-    return rows
 
 
 def _check_settings(out: Path, settings: BenchSettings) -> None:
