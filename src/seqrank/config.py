@@ -136,9 +136,16 @@ TABLE2: dict[str, tuple[float, int, int, int, int, int]] = {
     "hammer-v3": (3e-4, 5_000, 10_000, 30, 10_000, 1_000_000),
 }
 
+GYM_DEFAULTS = {"hidden": 256, "layers": 2, "batch": 256, "actor_lr": 3e-4, "critic_lr": 3e-4}
+
 SUITE_DEFAULTS: dict[str, dict[str, Any]] = {
     "dmc": {"hidden": 1024, "layers": 2, "batch": 1024, "reward_epochs": 50},
     "metaworld": {"hidden": 256, "layers": 3, "batch": 512, "reward_epochs": 10},
+    # Gymnasium tasks (gym:ID, a user's factory): SAC's own MuJoCo settings (Haarnoja et
+    # al. 2018: 256 x 2, batch 256, learning rate 3e-4), which SB3 and CleanRL keep; the
+    # feedback schedule is the SPEC's defaults (400 answers, 40 every 20 000 steps).
+    "gym": GYM_DEFAULTS,
+    "custom": GYM_DEFAULTS,
     # block:place, supplementary Table 4 (D.1): DQN; lr 1e-6 for policy and reward, feedback
     # every 200 steps in batches of 50, 3 000 training steps after the 1 000 random steps,
     # 30-step segments. 800 questions do not fit 3 000 steps (15 sessions do: 750).

@@ -44,19 +44,29 @@ class EpisodeStore:
         return np.array([e.reward.sum() for e in list(self.episodes)[-count:]])
 
     def sample_segments(self, count: int, length: int, rng: np.random.Generator) -> Segments:
-        """`count` segments cut at a uniform episode and a uniform start."""
+        """`count` segments cut at a uniform episode and a uniform start.
+
+        An episode shorter than `length` (a Gymnasium task that ended in a terminal state)
+        gives its whole self, padded with its last step repeated at zero true reward: what
+        an absorbing terminal state would show.
+        """
         episodes = list(self.episodes)
         which = rng.integers(len(episodes), size=count)
         features, rewards, states, contexts = [], [], [], []
         for e in which:
             episode = episodes[e]
-            start = int(rng.integers(len(episode.reward) - length + 1))
+            start = int(rng.integers(max(len(episode.reward) - length, 0) + 1))
             stop = start + length
-            features.append(
-                np.concatenate([episode.obs[start:stop], episode.action[start:stop]], 1)
+            obs, action = (
+                _pad(episode.obs[start:stop], length),
+                _pad(episode.action[start:stop], length),
             )
-            rewards.append(episode.reward[start:stop])
-            states.append(None if episode.states is None else episode.states[start:stop])
+            features.append(np.concatenate([obs, action], 1))
+            reward = episode.reward[start:stop]
+            rewards.append(np.concatenate([reward, np.zeros(length - len(reward))]))
+            states.append(
+                None if episode.states is None else _pad(episode.states[start:stop], length)
+            )
             contexts.append(episode.context)
         return Segments(np.stack(features).astype(np.float32), np.stack(rewards), states, contexts)
 
@@ -65,3 +75,9 @@ class EpisodeStore:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.episodes = deque(state["episodes"], maxlen=state["keep"])
+
+
+def _pad(rows: np.ndarray, length: int) -> np.ndarray:
+    """`rows` with its last row repeated up to `length` rows."""
+    missing = length - len(rows)
+    return rows if missing <= 0 else np.concatenate([rows, np.repeat(rows[-1:], missing, 0)])

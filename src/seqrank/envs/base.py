@@ -21,6 +21,10 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
     name: str
     episode_length: int
     discrete = False  # True: actions are one-hot choices (block:place, learned with DQN)
+    # "state": clips are re-rendered from saved physics states; "frames": get_state() is
+    # the frame itself, recorded while playing (a Gymnasium task without MuJoCo state)
+    clip_source = "state"
+    has_terminals = False  # True: episodes may end before `episode_length` (Gymnasium tasks)
     _model: Any
     _data: Any
 
@@ -78,7 +82,7 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
     def restore_context(self, context: int | None) -> None:
         """Make the episode-level setting (Meta-World's task) current again."""
 
-    _camera: int | str = 0
+    _camera: int | str | mujoco.MjvCamera = 0
     _flip = False
     _fast_rendering = False
 

@@ -1,12 +1,13 @@
-"""One factory for DMControl and Meta-World v3 tasks, with gymnasium semantics.
+"""One factory for DMControl and Meta-World v3 tasks, with gymnasium semantics (and, through
+`gym_env.py`, any Gymnasium environment: `gym:ID` or a user's `module.path:factory`).
 
 `make_env("walker_walk")`, `make_env("dmc:cartpole_swingup")`, `make_env("door-open")`,
 `make_env("metaworld:door-open-v3")`. Every environment:
 
 - returns flattened float32 observations and takes actions in [-1, 1];
 - puts `success` in every step's info (always False on DMControl, which has none);
-- has no true terminals: episodes end by time limit (`truncated`), DMC 1 000 steps,
-  Meta-World 500;
+- has no true terminals (the Gymnasium tasks do): episodes end by time limit
+  (`truncated`), DMC 1 000 steps, Meta-World 500;
 - is reseeded at every `reset(seed=...)`, so an episode is a function of its seed (this is
   what lets a killed run resume exactly); Meta-World draws its task (goal) from the 50 MT1
   tasks with that seed and reports it as `info["task_index"]`;
@@ -42,11 +43,25 @@ PAPER_TASKS = DMC_PAPER_TASKS + METAWORLD_PAPER_TASKS
 BLOCK_TASKS = ("place",)
 
 
+SUITES = ("dmc", "metaworld", "block", "gym")
+
+
 def canonical_task(name: str) -> tuple[str, str]:
-    """("dmc", "walker_walk"), ("metaworld", "door-open-v3") or ("block", "place")."""
+    """("dmc", "walker_walk"), ("metaworld", "door-open-v3"), ("block", "place"),
+    ("gym", "Hopper-v5") or ("custom", "my_pkg.envs:make") (a user's factory)."""
     suite_name, _, task = name.partition(":") if ":" in name else ("", "", name)
     if suite_name == "block" and task in BLOCK_TASKS:
         return "block", task
+    if suite_name == "gym":
+        from seqrank.envs.gym_env import check_gym_id
+
+        check_gym_id(task)
+        return "gym", task
+    if suite_name and suite_name not in SUITES and task:
+        from seqrank.envs.gym_env import load_factory
+
+        load_factory(name)  # raises naming what is missing
+        return "custom", name
     if suite_name in ("", "dmc") and task in _dmc_tasks():
         return "dmc", task
     mw_task = task if task.endswith("-v3") else f"{task}-v3"
@@ -55,7 +70,9 @@ def canonical_task(name: str) -> tuple[str, str]:
     raise ValueError(
         f"unknown task {name!r}; accepted: {', '.join(PAPER_TASKS)}, any DMControl "
         "domain_task (e.g. dmc:cartpole_swingup) or Meta-World v3 MT1 task "
-        "(e.g. metaworld:reach-v3), or block:place (the tabletop block-placing task)"
+        "(e.g. metaworld:reach-v3), block:place (the tabletop block-placing task), "
+        "gym:ID (a registered Gymnasium environment, e.g. gym:Hopper-v5) or "
+        "module.path:factory (your own function returning a gymnasium.Env)"
     )
 
 
@@ -80,6 +97,13 @@ def make_env(name: str, seed: int = 0) -> SimEnv:
         from seqrank.envs.block import BlockPlaceEnv
 
         return BlockPlaceEnv(seed)
+    if suite_name in ("gym", "custom"):
+        import gymnasium
+
+        from seqrank.envs.gym_env import GymEnv, load_factory
+
+        env = gymnasium.make(task) if suite_name == "gym" else load_factory(task)()
+        return GymEnv(env, name)  # seeded at every reset(seed=...), like the others
     return MetaWorldEnv(task, seed)
 
 

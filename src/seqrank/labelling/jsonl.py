@@ -7,6 +7,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from seqrank.feedback.label_file import FORMAT, VERSION, read_label_file
 from seqrank.labelling.db import LabelDB, from_blob
 
@@ -37,7 +39,7 @@ def export_lines(db: LabelDB) -> Iterator[str]:
                 "session": row["session"],
                 "features": from_blob(row["features"]).tolist(),
                 "rewards": from_blob(row["rewards"]).tolist(),
-                "states": None if row["states"] is None else from_blob(row["states"]).tolist(),
+                "states": _exported_states(row["states"]),
                 "context": row["context"],
             }
         )
@@ -190,3 +192,10 @@ def _check_same(
                 f"{path}: run {run!r} session {session} question {record['index']} is "
                 f"{record['answer']!r} in the file but {have!r} in the database; nothing imported"
             )
+
+
+def _exported_states(blob: bytes | None) -> list[Any] | None:
+    """Physics states as lists; recorded frames (uint8 images of a task without MuJoCo
+    state) are left out: megabytes per segment, and nothing can re-render from them."""
+    states = None if blob is None else from_blob(blob)
+    return None if states is None or states.dtype == np.uint8 else states.tolist()

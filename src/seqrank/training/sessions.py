@@ -54,8 +54,8 @@ class FeedbackSessions:
 
     def due(self, c: Counters, is_open: bool) -> bool:
         """The first session at once; later ones every `feedback_frequency` steps."""
-        if self.pending is not None:
-            return False
+        if self.pending is not None or len(self.episodes) == 0:
+            return False  # (segments are cut from complete episodes)
         since = c.step - c.last_session_step
         return c.sessions == 0 or (is_open and since >= self.schedule.feedback_frequency)
 

@@ -62,7 +62,9 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
         self.eval_env = make_env(config.task, config.seed)
-        if config.first_session_step < self.env.episode_length:
+        # (a task with terminal states may end episodes sooner: its first session waits
+        # for the first complete episode instead)
+        if config.first_session_step < self.env.episode_length and not self.env.has_terminals:
             raise ValueError(
                 f"the first feedback session (step {config.first_session_step}) comes before "
                 f"the first complete episode ({self.env.episode_length} steps); raise "
