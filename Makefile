@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install browser run test lint typecheck pytest clean
+.PHONY: install browser run test lint typecheck pytest wheel clean
 
 # The browser test drives Debian's chromium (never a downloaded browser): install it if absent.
 SUDO := $(shell [ "$$(id -u)" -eq 0 ] || echo sudo)
@@ -39,7 +39,11 @@ browser:
 pytest: $(STAMP) browser
 	OMP_NUM_THREADS=1 $(PY) -m pytest -n 2 --dist loadfile
 
-test: lint typecheck pytest
+# The wheel as a user installs it: built, put into a clean venv, trained and served from there.
+wheel: $(STAMP)
+	scripts/check_wheel.sh
+
+test: lint typecheck pytest wheel
 
 clean:
 	rm -rf $(VENV) seqrank-out .pytest_cache .mypy_cache .ruff_cache

@@ -73,7 +73,17 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
             assert sorted(roles) == ["defender · stays", "new challenger"]
             defender_side = "left" if "defender" in page.inner_text("#left-role") else "right"
 
+            page.wait_for_timeout(2500)  # a person's time to decide: the next clips render
+            page.evaluate("window.answeredAt = performance.now()")
             page.keyboard.press("ArrowLeft")
+            page.wait_for_function(  # the next question's clips decoded and showing
+                "document.getElementById('progress').textContent.includes('question 2 of 6')"
+                " && ['left-video', 'right-video']"
+                ".every(id => document.getElementById(id).readyState >= 2)",
+                timeout=30_000,
+            )
+            shown_after = page.evaluate("performance.now() - window.answeredAt")
+            print(f"\nnext question's clips shown {shown_after:.0f} ms after the answer")
             wait_question(page, 2, 6)
             page.click("#right")
             wait_question(page, 3, 6)

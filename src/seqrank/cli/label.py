@@ -13,6 +13,7 @@ from seqrank.cli.options import Parser, add_run_options, positive
 from seqrank.cli.train import new_run, prepare_run
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
+from seqrank.labelling import CLIP_SIZE
 
 SERVER_HELP = "labelling page options"
 
@@ -99,7 +100,9 @@ def _server_options(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--annotator", default="anonymous", help="stored with every answer")
     group.add_argument("--fps", type=positive, default=30, help="clip frame rate (30)")
-    group.add_argument("--size", type=positive, default=128, help="clip width and height (128)")
+    group.add_argument(
+        "--size", type=positive, default=CLIP_SIZE, help=f"clip width and height ({CLIP_SIZE})"
+    )
     group.add_argument(
         "--keep-serving", action="store_true", help="keep the page up after the last answer"
     )

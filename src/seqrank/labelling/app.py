@@ -31,6 +31,7 @@ from seqrank.episodes import EpisodeStore
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
+from seqrank.labelling import CLIP_SIZE
 from seqrank.labelling.clips import ClipRenderer
 from seqrank.labelling.db import LabelDB, from_blob
 from seqrank.labelling.human import Hub, HumanSource, PageSettings, Stopped
@@ -48,7 +49,7 @@ class ServerOptions:
     countdown_s: float = 3.0
     annotator: str = "anonymous"
     fps: int = 30
-    size: int = 128
+    size: int = CLIP_SIZE
 
 
 def is_loopback(host: str) -> bool:

@@ -13,6 +13,7 @@ let shownAt = 0;         // when the countdown started (ms, performance clock)
 let countdownS = 0;
 let timerFrame = 0;
 let pollTimer = 0;
+let answeredAt = -1e9;   // when the last answer was acknowledged (ms, performance clock)
 
 function show(name) {
   for (const s of sections) $(s).hidden = s !== name;
@@ -84,7 +85,8 @@ function render(state) {
   $("progress").textContent = state.scheme ? `${state.scheme}` : "";
   $("waiting-text").textContent = state.message || "Please wait…";
   show("waiting");
-  schedule(1000);
+  // right after an answer the next question is usually moments away: look again soon
+  schedule(performance.now() - answeredAt < 3000 ? 40 : 1000);
 }
 
 function clipUrl(side) {
@@ -177,6 +179,7 @@ async function answer(choice) {
   }
   current = null;
   busy = false;
+  answeredAt = performance.now();
   poll();
 }
 
