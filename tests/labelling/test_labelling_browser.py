@@ -73,7 +73,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
             assert sorted(roles) == ["defender · stays", "new challenger"]
             defender_side = "left" if "defender" in page.inner_text("#left-role") else "right"
 
-            page.wait_for_timeout(2500)  # a person's time to decide: the next clips render
+            page.wait_for_timeout(1500)  # a person's time to decide: the next clips render
             page.evaluate("window.answeredAt = performance.now()")
             page.keyboard.press("ArrowLeft")
             page.wait_for_function(  # the next question's clips decoded and showing
