@@ -177,6 +177,7 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
         ("wall time", f"{summary['wall_seconds'] / 60:.1f} min"),
         ("steps per second", f"{summary['steps_per_second']:.0f}"),
     ]
+    rows[3:3] = _reference_rows(summary, run) if reward.asks and final is not None else []
     for name, value in rows:
         table.add_row(name, value)
     out.print(table)
@@ -191,3 +192,16 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
         name = summary["scheme"] if reward.asks else reward.method
         plot_curve(curve, run.path / "returns.png", f"{summary['task']} ({name})")
     out.print(f"run directory: {run.path}")
+
+
+def _reference_rows(summary: dict[str, Any], run: RunDir) -> list[tuple[str, str]]:
+    """The shipped true-reward measurement at this run's final step, beside its return."""
+    from seqrank.reference import reference_for
+
+    reference = reference_for(run.read_config().as_dict(), summary["steps"])
+    if reference is None:
+        return [("true-reward agent", "not measured for these settings (--reward true)")]
+    return [
+        ("true-reward agent, same step (measured)", reference.describe()),
+        ("  measured in", reference.measured.split(":")[0]),
+    ]

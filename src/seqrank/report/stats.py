@@ -55,3 +55,13 @@ def stratified_bootstrap_ci(
     tail = 100 * (1 - level) / 2
     low, high = np.percentile(values, [tail, 100 - tail])
     return float(low), float(high)
+
+
+def interval(values: list[float]) -> tuple[float, float, float]:
+    """Mean and its 95% t-interval over seeds (the mean twice for a single seed)."""
+    array = np.asarray(values, np.float64)
+    mean = float(array.mean())
+    if len(array) < 2:
+        return mean, mean, mean
+    half = float(stats.t.ppf(0.975, len(array) - 1) * array.std(ddof=1) / np.sqrt(len(array)))
+    return mean, mean - half, mean + half

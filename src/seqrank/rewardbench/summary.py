@@ -7,9 +7,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from seqrank.feedback.schemes import SchemeName
+from seqrank.report.stats import interval
 
 MEASURES = {
     "accuracy": "held-out preference accuracy",
@@ -17,16 +17,6 @@ MEASURES = {
     "inferred_wrong": "wrong inferred labels (fraction)",
 }
 Group = tuple[str, str, str, int]  # task, teacher, scheme, questions
-
-
-def interval(values: list[float]) -> tuple[float, float, float]:
-    """Mean and its 95% t-interval over seeds (the mean twice for a single seed)."""
-    array = np.asarray(values, np.float64)
-    mean = float(array.mean())
-    if len(array) < 2:
-        return mean, mean, mean
-    half = float(stats.t.ppf(0.975, len(array) - 1) * array.std(ddof=1) / np.sqrt(len(array)))
-    return mean, mean - half, mean + half
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
