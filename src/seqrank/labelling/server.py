@@ -23,13 +23,20 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, FastAPI, HTTPException, Path
 from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from seqrank.labelling.access import Access, AccessGuard
 from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
-from seqrank.labelling.limits import MAX_ID, BodyRules, Id, Name, Text, add_error_handlers
+from seqrank.labelling.limits import (
+    MAX_ID,
+    BodyRules,
+    Id,
+    add_error_handlers,
+    one_line,
+    valid_unicode,
+)
 
 STATIC = resources.files("seqrank.labelling") / "static"
 # strict: no "1" for 1 or true for 1; finite floats only; nothing beyond the fields
@@ -45,9 +52,9 @@ class AnswerIn(BaseModel):
 
 class SurveyIn(BaseModel):
     model_config = STRICT
-    run: Annotated[Name, Field(min_length=1, max_length=200)]
+    run: Annotated[str, Field(min_length=1, max_length=200), AfterValidator(one_line)]
     satisfaction: int = Field(ge=1, le=5)
-    criteria: Annotated[Text, Field(max_length=5000)]
+    criteria: Annotated[str, Field(max_length=5000), AfterValidator(valid_unicode)]
 
 
 def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
