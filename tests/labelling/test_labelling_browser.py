@@ -17,6 +17,7 @@ import httpx
 import pytest
 
 from seqrank.labelling.app import OfflineOptions, PageServer, ServerOptions, open_hub, run_offline
+from seqrank.labelling.human import Stopped
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -38,14 +39,22 @@ if not Path(CHROMIUM).exists():  # `make test` installs Debian's chromium; say s
 TASK = "dmc:cartpole_swingup"
 
 
-def serve_offline(directory: Path, task: str, scheme: str, questions: int, countdown: float):
-    hub = open_hub(directory, task, ServerOptions(port=0, countdown_s=countdown, annotator="e2e"))
+def serve_offline(
+    directory: Path, task: str, scheme: str, questions: int, countdown: float, token=None
+):
+    options = ServerOptions(port=0, token=token, countdown_s=countdown, annotator="e2e")
+    hub = open_hub(directory, task, options)
     server = PageServer(hub, ServerOptions(port=0))
     server.start()
     options = OfflineOptions(task, scheme, questions, 1, 50, 1, 0, None)
-    thread = threading.Thread(
-        target=run_offline, args=(directory, options, hub, lambda text: None), daemon=True
-    )
+
+    def drive() -> None:
+        try:
+            run_offline(directory, options, hub, lambda text: None)
+        except Stopped:
+            pass  # the test stopped the server while a question was waiting
+
+    thread = threading.Thread(target=drive, daemon=True)
     thread.start()
     return hub, server, thread
 
@@ -251,14 +260,25 @@ def test_failed_and_unanswered_deliveries_are_retried_and_said_so(tmp_path):
 
 
 def test_an_answer_refused_as_answered_elsewhere_is_shown_then_the_page_moves_on(tmp_path):
-    hub, server, _ = serve_offline(tmp_path / "labels", TASK, "pairwise", 2, 0.0)
+    token = "a-token-for-this-test-only"
+    hub, server, thread = serve_offline(tmp_path / "labels", TASK, "pairwise", 2, 0.0, token)
+    api = server.url.partition("?")[0] + "api"
+    other_tab = httpx.Client(headers={"x-seqrank-token": token})
     try:
         with sync_api.sync_playwright() as playwright:
             browser, page = open_page(playwright, server.url)
             wait_question(page, 1, 2)
-            asked = httpx.get(f"{server.url}api/state").json()["question"]
-            other_tab = {"question_id": asked["id"], "choice": "right", "latency_ms": 5}
-            assert httpx.post(f"{server.url}api/answer", json=other_tab).status_code == 200
+            # the token has left the address bar; the cookie (out of the page's reach) and
+            # nothing else carries it, clips included
+            assert "token" not in page.url and page.evaluate("() => document.cookie") == ""
+            page.wait_for_function(
+                "() => ['left-video', 'right-video']"
+                ".every(id => document.getElementById(id).readyState >= 2)",
+                timeout=30_000,
+            )
+            asked = other_tab.get(f"{api}/state").json()["question"]
+            body = {"question_id": asked["id"], "choice": "right", "latency_ms": 5}
+            assert other_tab.post(f"{api}/answer", json=body).status_code == 200
             page.click("#left")
             wait_error(page, "This question was answered in another tab or window")
             shown = time.monotonic()
@@ -266,10 +286,15 @@ def test_an_answer_refused_as_answered_elsewhere_is_shown_then_the_page_moves_on
             wait_question(page, 2, 2)
             assert time.monotonic() - shown >= 3.0  # long enough to read
             assert error_text(page) == ""
+            page.click("#left")
+            page.wait_for_selector("#done:not([hidden])", timeout=30_000)
             browser.close()
+        thread.join(30)
         stored = hub.db.answered_questions()
-        assert [(q.id, a.choice) for q, a in stored] == [(asked["id"], "right")]
+        assert [(q.id, a.choice) for q, a in stored[:1]] == [(asked["id"], "right")]
+        assert [a.choice for _, a in stored] == ["right", "left"]
     finally:
+        other_tab.close()
         stop(hub, server)
 
 
