@@ -9,7 +9,7 @@ import shutil
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
@@ -49,10 +49,8 @@ def serve_offline(
     options = OfflineOptions(task, scheme, questions, 1, 50, 1, 0, None)
 
     def drive() -> None:
-        try:
+        with suppress(Stopped):  # the test stopped the server while a question was waiting
             run_offline(directory, options, hub, lambda text: None)
-        except Stopped:
-            pass  # the test stopped the server while a question was waiting
 
     thread = threading.Thread(target=drive, daemon=True)
     thread.start()
