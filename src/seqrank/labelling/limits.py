@@ -48,7 +48,7 @@ def one_line(value: str) -> str:
     return value
 
 
-Id = Annotated[int, Field(ge=1, le=MAX_ID)]
+RowId = Annotated[int, Field(ge=1, le=MAX_ID)]  # a stored row (question, segment)
 
 
 class BodyRules:

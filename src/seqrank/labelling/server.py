@@ -32,7 +32,7 @@ from seqrank.labelling.jsonl import export_lines
 from seqrank.labelling.limits import (
     MAX_ID,
     BodyRules,
-    Id,
+    RowId,
     add_error_handlers,
     one_line,
     valid_unicode,
@@ -45,7 +45,7 @@ STRICT = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 class AnswerIn(BaseModel):
     model_config = STRICT
-    question_id: Id
+    question_id: RowId
     choice: Literal["left", "right", "equal", "skip", "timeout"]
     latency_ms: float = Field(ge=0, le=24 * 3600 * 1000)
 
