@@ -45,7 +45,8 @@ def main() -> None:
         page = browser.new_page(viewport={"width": 1000, "height": 760})
         page.goto(server.url)
         page.wait_for_function(
-            "['left-video', 'right-video'].every(id => document.getElementById(id).readyState >= 3)"
+            "() => ['left-video', 'right-video']"
+            ".every(id => document.getElementById(id).readyState >= 3)"
         )
         page.wait_for_timeout(1200)  # clips play and the countdown runs down a little
         out = Path("docs/labelling-page.png")

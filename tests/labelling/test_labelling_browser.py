@@ -1,15 +1,23 @@
 """The real page in Debian's headless Chromium, driven by Playwright: keyboard, clicks,
-a time-out and a reload mid-session; the database must hold exactly the given answers."""
+a time-out and a reload mid-session; the database must hold exactly the given answers.
+Answers that fail (500, no reply, answered in another tab) are retried or shown, never
+dropped in silence; pages from other origins can neither read nor write."""
 
 from __future__ import annotations
 
 import shutil
 import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
+import httpx
 import pytest
 
 from seqrank.labelling.app import OfflineOptions, PageServer, ServerOptions, open_hub, run_offline
+from seqrank.labelling.human import Stopped
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -28,28 +36,89 @@ if not Path(CHROMIUM).exists():  # `make test` installs Debian's chromium; say s
     pytest.fail(f"{CHROMIUM} not found: install Debian's chromium (make test does)", pytrace=False)
 
 
-def serve_offline(directory: Path, task: str, scheme: str, questions: int, countdown: float):
-    hub = open_hub(directory, task, ServerOptions(port=0, countdown_s=countdown, annotator="e2e"))
+TASK = "dmc:cartpole_swingup"
+
+
+def serve_offline(
+    directory: Path, task: str, scheme: str, questions: int, countdown: float, token=None
+):
+    options = ServerOptions(port=0, token=token, countdown_s=countdown, annotator="e2e")
+    hub = open_hub(directory, task, options)
     server = PageServer(hub, ServerOptions(port=0))
     server.start()
     options = OfflineOptions(task, scheme, questions, 1, 50, 1, 0, None)
-    thread = threading.Thread(
-        target=run_offline, args=(directory, options, hub, lambda text: None), daemon=True
-    )
+
+    def drive() -> None:
+        with suppress(Stopped):  # the test stopped the server while a question was waiting
+            run_offline(directory, options, hub, lambda text: None)
+
+    thread = threading.Thread(target=drive, daemon=True)
     thread.start()
     return hub, server, thread
 
 
-def open_page(playwright, url: str):
-    browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+def open_page(playwright, url: str, clock: bool = False, extra_args: tuple[str, ...] = ()):
+    """A browser and its page at `url`; `clock`: the page's timers can be fast-forwarded."""
+    args = [*CHROMIUM_ARGS, *extra_args]
+    browser = playwright.chromium.launch(executable_path=CHROMIUM, args=args)
     page = browser.new_page(viewport={"width": 1100, "height": 820})
+    if clock:
+        page.clock.install()
     page.goto(url)
     return browser, page
 
 
+def stop(hub, server) -> None:
+    hub.stop.set()
+    server.stop()
+    hub.renderer.close()
+    hub.db.close()
+
+
+def httpx_question(url: str) -> dict:
+    for _ in range(1200):
+        state = httpx.get(f"{url}/api/state").json()
+        if state["status"] == "question":
+            return state["question"]
+        time.sleep(0.05)
+    raise AssertionError("no question was shown")
+
+
+@contextmanager
+def serve_html(html: str) -> Iterator[str]:
+    """A second, unrelated web server on another port of this machine, serving one page."""
+
+    class Handler(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            body = html.encode()
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args) -> None:
+            pass
+
+    server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def wait_results(page) -> dict:
+    page.wait_for_function("() => window.results && window.results.done", timeout=30_000)
+    page.wait_for_timeout(1000)  # the form's post goes out after the fetches
+    return page.evaluate("() => window.results")
+
+
 def wait_question(page, number: int, total: int) -> None:
     page.wait_for_function(
-        f"document.getElementById('progress').textContent.includes('question {number} of {total}')"
+        "() => document.getElementById('progress').textContent"
+        f".includes('question {number} of {total}')"
         " && !document.getElementById('left').disabled",
         timeout=60_000,
     )
@@ -65,7 +134,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
             wait_question(page, 1, 6)
             # the clips really play in the browser (H.264 decodes)
             page.wait_for_function(
-                "['left-video', 'right-video']"
+                "() => ['left-video', 'right-video']"
                 ".every(id => document.getElementById(id).readyState >= 2)",
                 timeout=30_000,
             )
@@ -91,7 +160,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
             wait_question(page, 4, 6)
             # no answer: the 3 s countdown runs out and the question counts as timed out
             page.wait_for_function(
-                "document.getElementById('progress').textContent.includes('question 5 of 6')",
+                "() => document.getElementById('progress').textContent.includes('question 5 of 6')",
                 timeout=30_000,
             )
             page.reload()  # mid-session: the page picks up at the first unanswered question
@@ -118,10 +187,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
         assert 2900 <= timed_out.latency_ms <= 6000  # the countdown, measured by the page
         assert all(a.latency_ms < 3000 for _, a in stored[:3])
     finally:
-        hub.stop.set()
-        server.stop()
-        hub.renderer.close()
-        hub.db.close()
+        stop(hub, server)
 
 
 def test_the_survey_form_sends_satisfaction_and_criteria(tmp_path):
@@ -137,7 +203,7 @@ def test_the_survey_form_sends_satisfaction_and_criteria(tmp_path):
             page.check("input[name=satisfaction][value='4']")
             page.fill("#criteria", "distance moved, then posture")
             page.click("#survey-submit")
-            page.wait_for_function("document.getElementById('error').hidden", timeout=10_000)
+            page.wait_for_function("() => document.getElementById('error').hidden", timeout=10_000)
             browser.close()
         for _ in range(100):
             if hub.db.survey("root") is not None:
@@ -147,7 +213,167 @@ def test_the_survey_form_sends_satisfaction_and_criteria(tmp_path):
         assert (row["scheme"], row["satisfaction"], row["annotator"]) == ("root", 4, "p07")
         assert row["criteria"] == "distance moved, then posture"
     finally:
-        hub.stop.set()
-        server.stop()
-        hub.renderer.close()
-        hub.db.close()
+        stop(hub, server)
+
+
+def error_text(page) -> str:
+    return page.inner_text("#error") if page.is_visible("#error") else ""
+
+
+def wait_error(page, text: str, timeout: float = 20_000) -> None:
+    page.wait_for_function(
+        f"() => document.getElementById('error').textContent.includes({text!r})", timeout=timeout
+    )
+
+
+def test_failed_and_unanswered_deliveries_are_retried_and_said_so(tmp_path):
+    hub, server, thread = serve_offline(tmp_path / "labels", TASK, "sequential", 2, 0.0)
+    held = []  # routes of requests left unanswered: the page must give up on them and retry
+
+    def flaky(route):
+        held.append(route)
+        if len(held) == 1:
+            route.fulfill(status=500, json={"detail": "database is busy"})
+        elif len(held) > 2:
+            route.continue_()
+        # the second request gets no reply at all
+
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, server.url, clock=True)
+            page.route("**/api/answer", flaky)
+            wait_question(page, 1, 2)
+            page.click("#left")
+            wait_error(page, "Server busy (error 500): your answer is kept, retrying in 1 s")
+            while len(held) < 2:
+                page.wait_for_timeout(50)
+            page.clock.fast_forward("00:16")  # past the page's 15 s limit for a reply
+            wait_error(page, "No reply from the server in 15 s: your answer is kept, retrying in")
+            wait_question(page, 2, 2)
+            assert len(held) == 3 and error_text(page) == ""
+            page.unroute("**/api/answer")
+            page.route("**/api/answer", lambda route: route.abort("failed"))
+            page.click("#right")
+            wait_error(page, "The server cannot be reached: your answer is kept")
+            page.reload()  # the kept answer survives the reload: the new page sends it first
+            wait_error(page, "The server cannot be reached: your answer is kept")
+            assert "right" in page.evaluate("() => sessionStorage.getItem(PENDING)")
+            page.unroute("**/api/answer")
+            page.wait_for_selector("#done:not([hidden])", timeout=30_000)
+            browser.close()
+        thread.join(30)
+        assert [a.choice for _, a in hub.db.answered_questions()] == ["left", "right"]
+    finally:
+        stop(hub, server)
+
+
+def test_an_answer_refused_as_answered_elsewhere_is_shown_then_the_page_moves_on(tmp_path):
+    token = "a-token-for-this-test-only"
+    hub, server, thread = serve_offline(tmp_path / "labels", TASK, "pairwise", 2, 0.0, token)
+    api = server.url.partition("?")[0] + "api"
+    other_tab = httpx.Client(headers={"x-seqrank-token": token})
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, server.url)
+            wait_question(page, 1, 2)
+            # the token has left the address bar; the cookie (out of the page's reach) and
+            # nothing else carries it, clips included
+            assert "token" not in page.url and page.evaluate("() => document.cookie") == ""
+            page.wait_for_function(
+                "() => ['left-video', 'right-video']"
+                ".every(id => document.getElementById(id).readyState >= 2)",
+                timeout=30_000,
+            )
+            asked = other_tab.get(f"{api}/state").json()["question"]
+            body = {"question_id": asked["id"], "choice": "right", "latency_ms": 5}
+            assert other_tab.post(f"{api}/answer", json=body).status_code == 200
+            page.click("#left")
+            wait_error(page, "This question was answered in another tab or window")
+            shown = time.monotonic()
+            assert "already answered 'right'" in error_text(page)
+            wait_question(page, 2, 2)
+            assert time.monotonic() - shown >= 3.0  # long enough to read
+            assert error_text(page) == ""
+            page.click("#left")
+            page.wait_for_selector("#done:not([hidden])", timeout=30_000)
+            browser.close()
+        thread.join(30)
+        stored = hub.db.answered_questions()
+        assert [(q.id, a.choice) for q, a in stored[:1]] == [(asked["id"], "right")]
+        assert [a.choice for _, a in stored] == ["right", "left"]
+    finally:
+        other_tab.close()
+        stop(hub, server)
+
+
+ATTACK = """<!doctype html><title>elsewhere</title>
+<iframe name="sink"></iframe>
+<form id="csrf" method="post" enctype="text/plain" action="TARGET/api/answer" target="sink">
+<input name='{"question_id": QUESTION, "choice": "left", "latency_ms": 1, "x": "' value='"}'>
+</form>
+<script>
+window.results = {};
+async function attempt(name, request) {
+  try {
+    const reply = await request();
+    window.results[name] = reply.type === "opaque" ? "opaque" : await reply.text();
+  } catch (error) { window.results[name] = "blocked"; }
+}
+const body = JSON.stringify({question_id: QUESTION, choice: "left", latency_ms: 1});
+(async () => {
+  await attempt("state", () => fetch("TARGET/api/state"));
+  await attempt("labels", () => fetch("TARGET/api/labels.jsonl"));
+  await attempt("json", () => fetch("TARGET/api/answer",
+    {method: "POST", headers: {"Content-Type": "application/json"}, body}));
+  await attempt("no-cors", () => fetch("TARGET/api/answer",
+    {method: "POST", mode: "no-cors", headers: {"Content-Type": "text/plain"}, body}));
+  document.getElementById("csrf").submit();
+  window.results.done = true;
+})();
+</script>"""
+
+
+# rebind.test resolves to this machine. Chromium's own Private Network Access would stop the
+# rebound page before the server sees it: it is off, standing for browsers without it, so
+# that the server's Host check is what is tested.
+REBINDING = (
+    "--host-resolver-rules=MAP rebind.test 127.0.0.1",
+    "--disable-features=LocalNetworkAccessChecks,"
+    "PrivateNetworkAccessSendPreflights,PrivateNetworkAccessRespectPreflightResults",
+)
+
+
+def test_pages_from_another_origin_can_neither_read_nor_write(tmp_path, caplog):
+    """A page on another port of this machine, and one whose name is re-pointed at the
+    server (DNS rebinding), against the token-less default: nothing read, nothing stored."""
+    hub, server, _ = serve_offline(tmp_path / "labels", TASK, "pairwise", 2, 0.0)
+    target = server.url.rstrip("/")
+    try:
+        question = httpx_question(target)
+        attack = ATTACK.replace("QUESTION", str(question["id"]))
+        with (
+            serve_html(attack.replace("TARGET", target)) as elsewhere,
+            sync_api.sync_playwright() as playwright,
+        ):
+            browser, page = open_page(playwright, elsewhere, extra_args=REBINDING)
+            results = wait_results(page)
+            rebound = f"http://rebind.test:{server.port}"
+            own_origin = attack.replace("TARGET", "")
+
+            def before_rebinding(route):  # served by the attacker's name before re-pointing
+                route.fulfill(body=own_origin, content_type="text/html")
+
+            page.route(f"{rebound}/attack", before_rebinding)
+            page.goto(f"{rebound}/attack")
+            rebinding = wait_results(page)
+            browser.close()
+        for outcome in (results, rebinding):
+            read = " ".join(str(value) for value in outcome.values())
+            assert '"status"' not in read and '"header"' not in read, outcome  # state, labels
+            assert outcome["state"] in ("blocked", "opaque") or "not an address" in outcome["state"]
+        assert "not an address this server serves" in rebinding["state"]  # refused by Host
+        refused = [r.getMessage() for r in caplog.records if r.name.endswith("access")]
+        assert any("POST /api/answer: requests from" in m for m in refused), refused
+        assert hub.db.answered_questions() == []
+    finally:
+        stop(hub, server)

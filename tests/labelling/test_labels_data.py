@@ -17,11 +17,10 @@ from seqrank.labelling.app import ServerOptions, open_hub
 from seqrank.labelling.db import LabelDB
 from seqrank.labelling.human import HumanSource
 from seqrank.labelling.jsonl import export_file, import_file
-from seqrank.labelling.server import create_app
 from seqrank.training.runs import RunDir
 from seqrank.training.trainer import Trainer
 from seqrank.types import Answer, AnsweredQuestion, Question
-from support.pages import Page
+from support.pages import Page, page_client
 from support.runs import tiny_config
 
 CHOICES = ["left", "right", "equal", "left", "skip", "right", "left", "timeout"]
@@ -200,7 +199,7 @@ def online_trainer(path, wait: bool, **overrides):
 
 def test_online_training_asks_the_person_and_learns_from_the_answers(tmp_path):
     trainer, hub = online_trainer(tmp_path / "run", wait=True, steps=2300, max_feedback=20)
-    answerer = Answerer(TestClient(create_app(hub)))
+    answerer = Answerer(page_client(hub))
     summary = train_answered(trainer, hub, answerer)
     assert summary["asked"] == 20 and summary["sessions"] == 2
     stored = hub.db.answered_questions("online")
@@ -212,7 +211,7 @@ def test_online_training_asks_the_person_and_learns_from_the_answers(tmp_path):
 
 def test_no_wait_keeps_training_while_a_session_is_answered(tmp_path):
     trainer, hub = online_trainer(tmp_path / "run", wait=False, steps=2300, max_feedback=20)
-    answerer = Answerer(TestClient(create_app(hub)))
+    answerer = Answerer(page_client(hub))
     release = threading.Event()  # the person answers the second session only after step 2100
     answerer.gate = lambda state: state["question"]["session"] == 1 or release.is_set()
 
@@ -289,7 +288,7 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
 
     path = tmp_path / "run"
     trainer, hub = online_trainer(path, wait=True, steps=2300, max_feedback=20)
-    answerer = Answerer(TestClient(create_app(hub)))
+    answerer = Answerer(page_client(hub))
     # the person answers all of session 1 and 4 questions of session 2, then the server stops
     # while the 15th question is on screen
 
@@ -315,7 +314,7 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
     hub = open_hub(path, run.read_config().task, ServerOptions(countdown_s=0))
     resumed = Trainer(run.read_config(), run, source=HumanSource(hub, "online", 3))
     resumed.load_checkpoint(run.load_checkpoint())
-    answerer = Answerer(TestClient(create_app(hub)))
+    answerer = Answerer(page_client(hub))
     summary = train_answered(resumed, hub, answerer)
     assert summary["asked"] == 20 and answerer.answered == 6  # only the 6 unanswered
     after = [(q.id, q.first, q.second, a.choice) for q, a in hub.db.answered_questions()]

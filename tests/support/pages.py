@@ -9,13 +9,38 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 from fastapi.testclient import TestClient
 
+from seqrank.episodes import Segments
+from seqrank.labelling.access import Access
 from seqrank.labelling.app import OfflineOptions, ServerOptions, open_hub, run_offline
+from seqrank.labelling.db import LabelDB
+from seqrank.labelling.human import Hub, PageSettings
 from seqrank.labelling.server import create_app
 
 TASK = "dmc:cartpole_swingup"
+LOCAL = "http://127.0.0.1:8765"  # a Host the guard serves (TestClient's own is "testserver")
+
+
+def page_client(hub: Hub, access: Access | None = None, **options: Any) -> TestClient:
+    """A TestClient of the page's app, addressed as a browser on this machine would."""
+    return TestClient(create_app(hub, access), base_url=LOCAL, **options)
+
+
+def waiting_question_hub(directory: Path, token: str | None = None) -> Hub:
+    """A hub whose database holds one pairwise question waiting for its answer: no driver
+    thread and no clips (its segments have no physics states), so it costs milliseconds."""
+    db = LabelDB.in_dir(directory)
+    pool = Segments(np.zeros((2, 3, 4), np.float32), np.zeros((2, 3)), [None, None], [None, None])
+    db.create_session("offline", 0, "pairwise", 1, 0, "left", pool)
+    first, second = sorted(db.segment_ids("offline", 0).values())
+    db.ensure_question("offline", 0, 0, first, second, None, first, second)
+    hub = Hub(db, PageSettings(0.0, "tester", token))
+    hub.run, hub.scheme = "offline", "pairwise"
+    return hub
 
 
 class Page:
@@ -33,7 +58,7 @@ class Page:
         self.directory = directory
         options = ServerOptions(token=token, countdown_s=3.0, annotator="tester")
         self.hub = open_hub(directory, task, options)
-        self.client = TestClient(create_app(self.hub))
+        self.client = page_client(self.hub)
         if token:
             self.client.headers["X-Seqrank-Token"] = token
         offline = OfflineOptions(task, scheme, questions, 1, segment_length, 1, 0, None)

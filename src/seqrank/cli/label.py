@@ -94,7 +94,17 @@ def _server_options(parser: argparse.ArgumentParser) -> None:
         help="address to listen on (127.0.0.1); any other needs a token, made if not given",
     )
     group.add_argument("--port", type=int, default=8765, help="(8765; 0 picks a free port)")
-    group.add_argument("--token", help="access token the page must carry")
+    group.add_argument(
+        "--token", help="access token the page must carry (16+ characters beyond 127.0.0.1)"
+    )
+    group.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="another name or address the page is opened by (e.g. a public IP in front of "
+        "this machine); others are refused (DNS-rebinding defence)",
+    )
     group.add_argument(
         "--countdown", type=float, default=3.0, help="seconds per question (3, as D.7; 0: none)"
     )
@@ -109,12 +119,24 @@ def _server_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _server(args: argparse.Namespace) -> Any:
+    from seqrank.labelling.access import page_token
     from seqrank.labelling.app import ServerOptions
 
     if args.countdown < 0:
         raise UsageError(f"--countdown {args.countdown}: must be 0 (none) or more seconds")
+    try:
+        page_token(args.host, args.token)
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
     return ServerOptions(
-        args.host, args.port, args.token, args.countdown, args.annotator, args.fps, args.size
+        args.host,
+        args.port,
+        args.token,
+        args.countdown,
+        args.annotator,
+        args.fps,
+        args.size,
+        allowed_hosts=tuple(args.allow_host),
     )
 
 
@@ -139,6 +161,8 @@ def _serve(hub: Any, args: argparse.Namespace, say: Any) -> Any:
     server = PageServer(hub, _server(args))
     server.start()
     say(f"labelling page: {server.url}")
+    if server.remote_url is not None:
+        say(f"from other machines: {server.remote_url}")
     return server
 
 

@@ -11,9 +11,7 @@ rendered on a third (see clips.py). All three share one `Hub` and one database.
 
 from __future__ import annotations
 
-import ipaddress
 import json
-import secrets
 import socket
 import threading
 import time
@@ -32,6 +30,7 @@ from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling import CLIP_SIZE
+from seqrank.labelling.access import Access, is_wildcard, page_token
 from seqrank.labelling.clips import ClipRenderer
 from seqrank.labelling.db import LabelDB, from_blob
 from seqrank.labelling.human import Hub, HumanSource, PageSettings, Stopped
@@ -50,26 +49,12 @@ class ServerOptions:
     annotator: str = "anonymous"
     fps: int = 30
     size: int = CLIP_SIZE
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def page_token(options: ServerOptions) -> str | None:
-    """Listening beyond this machine always needs a token (one is made if none is given)."""
-    if options.token is not None:
-        return options.token
-    return None if is_loopback(options.host) else secrets.token_urlsafe(16)
+    allowed_hosts: tuple[str, ...] = ()  # more names the page is reached by (Host check)
 
 
 class PageServer:
-    """uvicorn in a background thread; `url` is the address to open."""
+    """uvicorn in a background thread; `url` is the address to open on this machine, and
+    `remote_url` (when listening on every address) the one for other machines."""
 
     def __init__(self, hub: Hub, options: ServerOptions):
         import uvicorn
@@ -87,14 +72,20 @@ class PageServer:
                 "choose another --port (0 picks a free one)"
             ) from None
         port = self._socket.getsockname()[1]
-        config = uvicorn.Config(create_app(hub), log_level="warning", lifespan="off")
+        token = hub.settings.token
+        access = Access.serving(options.host, port, token, options.allowed_hosts)
+        app = create_app(hub, access)
+        config = uvicorn.Config(app, log_level="warning", lifespan="off")
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(
             target=self._server.run, kwargs={"sockets": [self._socket]}, daemon=True
         )
-        host = f"[{options.host}]" if ":" in options.host else options.host
-        token = hub.settings.token
-        self.url = f"http://{host}:{port}/" + (f"?token={token}" if token else "")
+        query = f"?token={token}" if token else ""
+        wildcard = is_wildcard(options.host)
+        host = ("::1" if ":" in options.host else "127.0.0.1") if wildcard else options.host
+        host = f"[{host}]" if ":" in host else host
+        self.url = f"http://{host}:{port}/{query}"
+        self.remote_url = f"http://{socket.gethostname()}:{port}/{query}" if wildcard else None
         self.port = port
 
     def start(self) -> None:
@@ -112,7 +103,8 @@ class PageServer:
 def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
     """The database in `directory` and a renderer for `task`'s clips."""
     db = LabelDB.in_dir(directory)
-    settings = PageSettings(options.countdown_s, options.annotator, page_token(options))
+    token = page_token(options.host, options.token)
+    settings = PageSettings(options.countdown_s, options.annotator, token)
     hub = Hub(db, settings)
 
     def make_frames() -> Callable[[int], np.ndarray]:

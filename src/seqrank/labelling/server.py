@@ -9,47 +9,63 @@ Endpoints (all JSON unless said otherwise; errors are `{"detail": "..."}` with a
 - `POST /api/survey`           `{run, satisfaction 1-5, criteria}` after a study method
 - `GET /api/labels.jsonl`      every answer so far in the documented JSONL format
 
-With a token set, every request must carry it (`?token=`, the `X-Seqrank-Token` header or
-the cookie the page gets on its first visit).
+Every request passes the access guard (`access.py`: Host, Origin, token) and the request
+rules (`limits.py`: JSON bodies of bounded size, bounded fields, errors that never echo
+the input). With a token set, a request carries the `X-Seqrank-Token` header or the cookie
+the page gets when it is opened with `?token=`.
 """
 
 from __future__ import annotations
 
-import secrets
-from collections.abc import Awaitable, Callable
 from importlib import resources
-from typing import Literal
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, FastAPI, HTTPException, Request, Response
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse
+from fastapi import APIRouter, FastAPI, HTTPException, Path
+from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
+from seqrank.labelling.access import Access, AccessGuard
 from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
-from seqrank.labelling.human import Hub, PageSettings
+from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
+from seqrank.labelling.limits import (
+    MAX_ID,
+    BodyRules,
+    RowId,
+    add_error_handlers,
+    one_line,
+    valid_unicode,
+)
 
 STATIC = resources.files("seqrank.labelling") / "static"
-TOKEN_COOKIE = "seqrank_token"
+# strict: no "1" for 1 or true for 1; finite floats only; nothing beyond the fields
+STRICT = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
 class AnswerIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    question_id: int = Field(ge=1)
+    model_config = STRICT
+    question_id: RowId
     choice: Literal["left", "right", "equal", "skip", "timeout"]
     latency_ms: float = Field(ge=0, le=24 * 3600 * 1000)
 
 
 class SurveyIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    run: str = Field(min_length=1, max_length=200)
+    model_config = STRICT
+    run: Annotated[str, Field(min_length=1, max_length=200), AfterValidator(one_line)]
     satisfaction: int = Field(ge=1, le=5)
-    criteria: str = Field(max_length=5000)
+    criteria: Annotated[str, Field(max_length=5000), AfterValidator(valid_unicode)]
 
 
-def create_app(hub: Hub) -> FastAPI:
+def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
+    """The page and its API behind the guard; `access` defaults to a loopback server."""
     app = FastAPI(title="seqrank labelling", docs_url=None, redoc_url=None, openapi_url=None)
-    app.middleware("http")(_token_check(hub.settings))
+    add_error_handlers(app)
+    app.add_middleware(BodyRules)
+    # added last, so it runs first: nothing is read from a request the guard turns away
+    app.add_middleware(
+        AccessGuard, access=access or Access.serving("127.0.0.1", 0, hub.settings.token)
+    )
 
     @app.get("/", response_class=HTMLResponse)
     def index() -> str:
@@ -61,36 +77,6 @@ def create_app(hub: Hub) -> FastAPI:
     app.include_router(_survey_routes(hub))
     app.include_router(_export_routes(hub.db))
     return app
-
-
-def _token_check(
-    settings: PageSettings,
-) -> Callable[[Request, Callable[[Request], Awaitable[Response]]], Awaitable[Response]]:
-    """A middleware that turns away requests without the access token (when one is set)."""
-
-    async def require_token(
-        request: Request, call_next: Callable[[Request], Awaitable[Response]]
-    ) -> Response:
-        token = settings.token
-        if token is None:
-            return await call_next(request)
-        given = (
-            request.query_params.get("token")
-            or request.headers.get("x-seqrank-token")
-            or request.cookies.get(TOKEN_COOKIE)
-            or ""
-        )
-        if not secrets.compare_digest(given.encode(), token.encode()):
-            return JSONResponse(
-                {"detail": "missing or wrong access token: open the address the server printed"},
-                status_code=401,
-            )
-        response = await call_next(request)
-        # the page's own requests (clips, answers) then carry the token without a query
-        response.set_cookie(TOKEN_COOKIE, token, httponly=True, samesite="strict")
-        return response
-
-    return require_token
 
 
 def _question_routes(hub: Hub) -> APIRouter:
@@ -168,7 +154,7 @@ def _clip_routes(hub: Hub) -> APIRouter:
     router = APIRouter()
 
     @router.get("/api/clips/{segment_id}.mp4")
-    def clip(segment_id: int) -> FileResponse:
+    def clip(segment_id: Annotated[int, Path(ge=1, le=MAX_ID)]) -> FileResponse:
         row = hub.db.segment(segment_id)
         if row is None:
             raise HTTPException(404, f"unknown segment {segment_id}")

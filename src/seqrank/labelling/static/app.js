@@ -1,9 +1,18 @@
-// The labelling page: shows what /api/state says, sends answers, never loses one.
-// An answer is resent until the server acknowledges it (the server makes resends harmless).
+// The labelling page: shows what /api/state says and sends answers without dropping one.
+// An answer is kept (in sessionStorage, so a reload keeps it too) and resent until the server
+// acknowledges it; the server makes resends harmless. Server errors and silence are retried
+// with backoff, saying so on the page; a refusal the person can act on ends the resending and
+// stays readable for a few seconds (409: the question was answered elsewhere) before moving on.
 "use strict";
 
-const token = new URLSearchParams(location.search).get("token");
-const headers = token ? { "X-Seqrank-Token": token } : {};
+// The access token came in the address (?token=...): the server has traded it for a cookie,
+// so it leaves the address bar and the history; every request below relies on the cookie.
+if (location.search) history.replaceState(null, "", location.pathname);
+
+const REQUEST_TIMEOUT_MS = 15000;
+const RETRY_DELAYS_S = [1, 2, 4, 8, 15];
+const READ_MS = 4000;      // how long a message stays up before the page moves on
+const PENDING = "seqrank-pending-answer";
 const $ = (id) => document.getElementById(id);
 const sections = ["asking", "waiting", "survey", "done"];
 
@@ -25,14 +34,54 @@ function showError(text) {
   box.hidden = !text;
 }
 
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+const detailOf = (reply) => {
+  const detail = reply.data && reply.data.detail;
+  return typeof detail === "string" ? detail : `error ${reply.status}`;
+};
+
+// One request with a time limit; throws on a network error or when no reply comes in time.
 async function api(path, body) {
-  const options = body === undefined
-    ? { headers }
-    : { method: "POST", headers: { ...headers, "Content-Type": "application/json" }, body: JSON.stringify(body) };
-  const response = await fetch(path, options);
-  let data = null;
-  try { data = await response.json(); } catch (_) { data = null; }
-  return { ok: response.ok, status: response.status, data };
+  const controller = new AbortController();
+  const timer = setTimeout(() => controller.abort(), REQUEST_TIMEOUT_MS);
+  const options = { signal: controller.signal, credentials: "same-origin" };
+  if (body !== undefined) {
+    Object.assign(options, {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
+    });
+  }
+  try {
+    const response = await fetch(path, options);
+    let data = null;
+    try { data = await response.json(); } catch (_) { data = null; }
+    return { ok: response.ok, status: response.status, data };
+  } finally {
+    clearTimeout(timer);
+  }
+}
+
+// Send until the server answers something other than "try again" (5xx, 408, 429, a network
+// error or no reply); the page says what happened and when the next try is.
+async function sendUntilHeard(path, body, what) {
+  for (let attempt = 0; ; attempt++) {
+    let reply = null;
+    let why = "";
+    try {
+      reply = await api(path, body);
+    } catch (error) {
+      why = error.name === "AbortError"
+        ? `No reply from the server in ${REQUEST_TIMEOUT_MS / 1000} s`
+        : "The server cannot be reached";
+    }
+    if (reply && reply.status < 500 && reply.status !== 408 && reply.status !== 429) return reply;
+    if (reply) why = `Server busy (${reply.status >= 500 ? "error " : ""}${reply.status})`;
+    const delay = RETRY_DELAYS_S[Math.min(attempt, RETRY_DELAYS_S.length - 1)];
+    for (let left = delay; left > 0; left--) {
+      showError(`${why}: ${what} is kept, retrying in ${left} s…`);
+      await sleep(1000);
+    }
+    showError(`${why}: ${what} is kept, retrying now…`);
+  }
 }
 
 function schedule(ms) {
@@ -41,15 +90,18 @@ function schedule(ms) {
 }
 
 async function poll() {
+  if (busy) return; // an answer is being delivered; the page polls once it is
   let reply;
   try {
     reply = await api("/api/state");
   } catch (_) {
-    showError("The labelling server cannot be reached; retrying…");
+    showError("The labelling server cannot be reached; retrying in 2 s…");
     return schedule(2000);
   }
+  if (busy) return;
   if (!reply.ok) {
-    showError(reply.data && reply.data.detail ? reply.data.detail : `server error ${reply.status}`);
+    const busyServer = reply.status >= 500 ? "Server busy, retrying in 3 s: " : "";
+    showError(busyServer + detailOf(reply));
     return schedule(3000);
   }
   showError("");
@@ -89,11 +141,8 @@ function render(state) {
   schedule(performance.now() - answeredAt < 3000 ? 40 : 1000);
 }
 
-function clipUrl(side) {
-  return token ? `${side.clip}?token=${encodeURIComponent(token)}` : side.clip;
-}
-
 function showQuestion(q) {
+  clearTimeout(pollTimer);
   current = q;
   busy = false;
   shownAt = performance.now(); // restarted when both clips play
@@ -108,7 +157,7 @@ function showQuestion(q) {
     role.textContent = side.role === "defender" ? "defender · stays" : side.role === "challenger" ? "new challenger" : "";
     const video = $(`${name}-video`);
     video.dataset.ready = "";
-    video.src = clipUrl(side);
+    video.src = side.clip; // the cookie carries the access, never the address
     video.load();
   }
   setButtons(true);
@@ -164,22 +213,46 @@ async function answer(choice) {
   if (choice === "left" || choice === "right") $(`${choice}-box`).classList.add("chosen");
   const latency = shownAt ? performance.now() - shownAt : 0;
   const body = { question_id: current.id, choice, latency_ms: Math.max(0, latency) };
-  for (let attempt = 0; ; attempt++) {
-    let reply;
-    try {
-      reply = await api("/api/answer", body);
-    } catch (_) {
-      showError("Your answer has not reached the server yet; retrying…");
-      await new Promise((r) => setTimeout(r, Math.min(500 * 2 ** attempt, 5000)));
-      continue;
-    }
-    if (!reply.ok) showError(reply.data && reply.data.detail ? reply.data.detail : `error ${reply.status}`);
-    else showError("");
-    break;
-  }
+  sessionStorage.setItem(PENDING, JSON.stringify(body));
+  await deliver(body);
   current = null;
   busy = false;
   answeredAt = performance.now();
+  poll();
+}
+
+// Deliver a kept answer; it is forgotten only once the server has said what became of it.
+async function deliver(body) {
+  const reply = await sendUntilHeard("/api/answer", body, "your answer");
+  if (reply.status === 401 || reply.status === 403) {
+    // kept: once the page is opened again with the printed address, it is sent first
+    showError(`Your answer is kept but the server refused it: ${detailOf(reply)}`);
+    await sleep(READ_MS);
+    return;
+  }
+  sessionStorage.removeItem(PENDING);
+  if (reply.ok) {
+    showError("");
+    return;
+  }
+  const what = reply.status === 409
+    ? "This question was answered in another tab or window, so this answer was not stored"
+    : "Your answer was refused";
+  showError(`${what} (${detailOf(reply)}). Moving on…`);
+  await sleep(READ_MS);
+  showError("");
+}
+
+// An answer kept from before a reload (or a refusal) is delivered before anything is shown.
+async function resumeKept() {
+  const kept = sessionStorage.getItem(PENDING);
+  if (kept) {
+    busy = true;
+    let body = null;
+    try { body = JSON.parse(kept); } catch (_) { sessionStorage.removeItem(PENDING); }
+    if (body) await deliver(body);
+    busy = false;
+  }
   poll();
 }
 
@@ -202,16 +275,14 @@ $("survey-form").addEventListener("submit", async (event) => {
   const picked = form.querySelector("input[name=satisfaction]:checked");
   if (!picked) return;
   $("survey-submit").disabled = true;
-  try {
-    const reply = await api("/api/survey", {
-      run: form.dataset.run, satisfaction: Number(picked.value), criteria: $("criteria").value,
-    });
-    showError(reply.ok ? "" : (reply.data && reply.data.detail) || `error ${reply.status}`);
-  } catch (_) {
-    showError("The survey could not be sent; please try again.");
-  }
+  busy = true;
+  const body = { run: form.dataset.run, satisfaction: Number(picked.value), criteria: $("criteria").value };
+  const reply = await sendUntilHeard("/api/survey", body, "your survey");
   $("survey-submit").disabled = false;
+  busy = false;
+  if (!reply.ok) return showError(`The survey was refused: ${detailOf(reply)}`);
+  showError("");
   poll();
 });
 
-poll();
+resumeKept();

@@ -1,0 +1,238 @@
+"""Who may use the labelling page: the access token, the Host and Origin checks, the cookie.
+
+Threats and what stops each (SECURITY.md says the same for users):
+- another machine: beyond loopback a token is always required (one is made if none given);
+- DNS rebinding (a web page whose name is re-pointed at 127.0.0.1): the Host header must
+  name an address this server serves, on every mode, the token-less default included;
+- cross-site requests from a page the annotator visits (another site, or another port on
+  this machine): a foreign `Origin` or a cross-origin `Sec-Fetch-Site` is refused, so a
+  page elsewhere can neither read nor write; writes must be JSON (checked in `limits.py`);
+- the token leaking: `?token=` is accepted on the page address only, traded there for an
+  HttpOnly, SameSite=Strict cookie (the page then drops it from the address bar); the
+  cookie holds a value derived from the token, not the token, and its name carries the
+  port, so two servers on one machine keep their own. Browsers send cookies to every port
+  of a host: a service on another port of this machine can still receive it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import ipaddress
+import logging
+import secrets
+import socket
+import string
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import lru_cache
+
+from starlette.datastructures import Headers
+from starlette.requests import Request
+from starlette.responses import JSONResponse
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+MIN_TOKEN_LENGTH = 16
+TOKEN_CHARACTERS = frozenset(string.ascii_letters + string.digits + "-_.~")  # URL-safe as is
+TOKEN_HEADER = "x-seqrank-token"
+LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
+SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+SECURITY_HEADERS = [
+    (b"content-security-policy", b"default-src 'self'; frame-ancestors 'none'; base-uri 'none'"),
+    (b"x-frame-options", b"DENY"),
+    (b"x-content-type-options", b"nosniff"),
+    (b"referrer-policy", b"no-referrer"),
+    (b"cross-origin-resource-policy", b"same-origin"),
+]
+log = logging.getLogger(__name__)
+
+
+def is_loopback(host: str) -> bool:
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def is_wildcard(host: str) -> bool:
+    """0.0.0.0 or ::, which listen on every address of the machine."""
+    try:
+        return ipaddress.ip_address(host).is_unspecified
+    except ValueError:
+        return False
+
+
+def page_token(host: str, token: str | None) -> str | None:
+    """The token the page requires: the given one, a new one beyond loopback, or none.
+
+    Raises ValueError (one line, for the CLI) for a token that is empty, too short to guard
+    a page other machines can reach, or not typeable in an address as it is.
+    """
+    if token is None:
+        return None if is_loopback(host) else secrets.token_urlsafe(24)
+    beyond = not is_loopback(host)
+    if not token or (beyond and len(token) < MIN_TOKEN_LENGTH):
+        where = f"--host {host} lets other machines connect" if beyond else "it is empty"
+        raise ValueError(
+            f"--token of {len(token)} characters refused: {where}; give at least "
+            f"{MIN_TOKEN_LENGTH} (letters, digits, - _ . ~) or leave --token out to have one made"
+        )
+    if not set(token) <= TOKEN_CHARACTERS:
+        raise ValueError("--token: use letters, digits and - _ . ~ only (it goes in an address)")
+    return token
+
+
+def host_name(host_header: str) -> str | None:
+    """The name or address in a Host header, without the port; None if malformed."""
+    value = host_header.strip().lower()
+    if value.startswith("["):
+        name, bracket, rest = value[1:].partition("]")
+        if not bracket or (rest and not rest[1:].isdigit()) or (rest and rest[0] != ":"):
+            return None
+    else:
+        name, _, port = value.partition(":")
+        if ":" in port or (port and not port.isdigit()):
+            return None
+    name = name.rstrip(".")
+    return name or None
+
+
+@lru_cache(maxsize=256)
+def is_local_address(name: str) -> bool:
+    """Whether `name` is an IP address of this machine (it can be bound to)."""
+    try:
+        address = ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    if address.is_unspecified or address.is_multicast:
+        return False
+    family = socket.AF_INET6 if address.version == 6 else socket.AF_INET
+    with socket.socket(family, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind((str(address), 0))
+        except OSError:
+            return False
+    return True
+
+
+@dataclass(frozen=True)
+class Access:
+    """What the guard accepts: the token (if any) and the names the server is reached by."""
+
+    token: str | None
+    names: frozenset[str]  # lower-case host names and addresses, without the port
+    any_local_address: bool  # a wildcard bind: every address of this machine is served
+    cookie: str  # the session cookie's name
+
+    @classmethod
+    def serving(
+        cls, host: str, port: int, token: str | None, extra_names: Iterable[str] = ()
+    ) -> Access:
+        wildcard = is_wildcard(host)
+        names = {n.lower().rstrip(".") for n in extra_names}
+        if not wildcard:  # nobody opens http://0.0.0.0/: a wildcard stands for the rest
+            names.add(host.lower())
+        if wildcard or is_loopback(host):
+            names |= LOOPBACK_NAMES
+        if wildcard:
+            names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
+        return cls(token, frozenset(names), wildcard, f"seqrank_session_{port}")
+
+    def serves(self, name: str) -> bool:
+        return name in self.names or (self.any_local_address and is_local_address(name))
+
+    def session_value(self) -> str:
+        """The cookie's value: derived from the token, so the cookie never holds the token."""
+        assert self.token is not None
+        return hmac.new(self.token.encode(), b"seqrank page session", hashlib.sha256).hexdigest()
+
+
+@dataclass(frozen=True)
+class Verdict:
+    status: int = 0  # 0: allowed
+    detail: str = ""
+    set_cookie: bool = False  # the page address carried the token: trade it for the cookie
+
+
+def check_origin(method: str, headers: Headers) -> str | None:
+    """Why a request from another origin is refused (None: same origin, or not a browser)."""
+    origin = headers.get("origin")
+    if origin is not None:
+        scheme, _, authority = origin.partition("://")
+        if scheme not in ("http", "https") or authority.lower() != headers["host"].lower():
+            return f"requests from {origin[:100]!r} are refused: use the page itself"
+    site = headers.get("sec-fetch-site", "none")
+    if site in ("same-origin", "none"):
+        return None
+    # a link from elsewhere may open the page (the person sees it, the other site does not)
+    navigation = headers.get("sec-fetch-mode") == "navigate"
+    if method in ("GET", "HEAD") and navigation and headers.get("sec-fetch-dest") == "document":
+        return None
+    return "requests from other pages are refused: use the page itself"
+
+
+def check_request(access: Access, request: Request) -> Verdict:
+    """The guard's decision for one request: Host, then Origin, then the token."""
+    name = host_name(request.headers.get("host", ""))
+    if name is None or not access.serves(name):
+        shown = request.headers.get("host", "")[:100]
+        return Verdict(
+            400,
+            f"Host {shown!r} is not an address this server serves; open the address it printed "
+            "(or start it with --allow-host NAME for another name of this machine)",
+        )
+    refused = check_origin(request.method, request.headers)
+    if refused is not None:
+        return Verdict(403, refused)
+    if access.token is None:
+        return Verdict()
+    from_address = request.query_params.get("token") if request.scope["path"] == "/" else None
+    if from_address is not None and _same(from_address, access.token):
+        return Verdict(set_cookie=True)
+    header = request.headers.get(TOKEN_HEADER)
+    if header is not None and _same(header, access.token):
+        return Verdict()
+    cookie = request.cookies.get(access.cookie)
+    if cookie is not None and _same(cookie, access.session_value()):
+        return Verdict()
+    return Verdict(401, "missing or wrong access token: open the address the server printed")
+
+
+def _same(given: str, expected: str) -> bool:
+    return secrets.compare_digest(given.encode(errors="replace"), expected.encode())
+
+
+class AccessGuard:
+    """ASGI middleware: every request passes `check_request`; every reply gets the security
+    headers (no framing, no cross-origin embedding, no referrer)."""
+
+    def __init__(self, app: ASGIApp, access: Access):
+        self.app, self.access = app, access
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        request = Request(scope)
+        verdict = check_request(self.access, request)
+        extra = list(SECURITY_HEADERS)
+        if verdict.set_cookie:
+            extra.append((b"set-cookie", self._cookie_header()))
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                message["headers"] = [*message.get("headers", []), *extra]
+            await send(message)
+
+        if verdict.status:
+            log.warning("refused %s %s: %s", request.method, scope["path"][:200], verdict.detail)
+            response = JSONResponse({"detail": verdict.detail}, verdict.status)
+            await response(scope, receive, send_with_headers)
+            return
+        await self.app(scope, receive, send_with_headers)
+
+    def _cookie_header(self) -> bytes:
+        value = self.access.session_value()
+        return f"{self.access.cookie}={value}; Path=/; HttpOnly; SameSite=Strict".encode()

@@ -1,0 +1,147 @@
+"""What a request may carry, and a 4xx JSON error for anything else (never a 500).
+
+- Writes carry JSON (415 otherwise) of at most `MAX_BODY_BYTES`, refused before parsing
+  (413) and never echoed back.
+- Fields: ids within what a browser's JSON keeps exactly (well inside SQLite's 64-bit
+  integers), finite floats, bounded strings of valid unicode (the schemas in `server.py`
+  use the types below).
+- A validation error names the field and the rule, never the value: FastAPI's default
+  echoes the input, a rejected 10 MB body whole, and fails (500) on input that is not
+  valid unicode or JSON-encodable.
+- A busy database answers 503 with Retry-After, which the page retries.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import unicodedata
+from typing import Annotated, Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from pydantic import Field
+from starlette.datastructures import Headers
+from starlette.responses import JSONResponse
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from seqrank.labelling.access import SAFE_METHODS
+
+MAX_BODY_BYTES = 64 * 1024
+MAX_ID = 2**53 - 1  # the largest integer JavaScript's numbers hold exactly
+MAX_PROBLEMS = 5
+
+
+def valid_unicode(value: str) -> str:
+    """Text that encodes as UTF-8 (JSON's \\ud800 escapes make lone surrogates)."""
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError("text must be valid unicode (no lone surrogates)") from None
+    return value
+
+
+def one_line(value: str) -> str:
+    """Valid unicode without control characters: a name shown in messages and files."""
+    valid_unicode(value)
+    if any(unicodedata.category(character) == "Cc" for character in value):
+        raise ValueError("control characters are not allowed")
+    return value
+
+
+RowId = Annotated[int, Field(ge=1, le=MAX_ID)]  # a stored row (question, segment)
+
+
+class BodyRules:
+    """ASGI middleware: a write must be JSON within `limit` bytes, checked before any parsing."""
+
+    def __init__(self, app: ASGIApp, limit: int = MAX_BODY_BYTES):
+        self.app, self.limit = app, limit
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] in SAFE_METHODS:
+            await self.app(scope, receive, send)
+            return
+        refusal = self._header_refusal(Headers(scope=scope))
+        if refusal is not None:
+            await refusal(scope, receive, send)
+            return
+        body = bytearray()
+        more = True
+        while more:
+            message = await receive()
+            if message["type"] == "http.disconnect":
+                return  # the client has gone: nobody to answer
+            body += message.get("body", b"")
+            if len(body) > self.limit:
+                await self._too_large()(scope, receive, send)
+                return
+            more = message.get("more_body", False)
+        await self.app(scope, _replay(bytes(body), receive), send)
+
+    def _header_refusal(self, headers: Headers) -> JSONResponse | None:
+        media_type = headers.get("content-type", "").partition(";")[0].strip().lower()
+        if media_type != "application/json":
+            return error(415, "send the body as JSON, with Content-Type: application/json")
+        length = headers.get("content-length")
+        if length is not None and not length.isdigit():
+            return error(400, "Content-Length must be a number of bytes")
+        if length is not None and int(length) > self.limit:
+            return self._too_large()
+        return None
+
+    def _too_large(self) -> JSONResponse:
+        return error(413, f"the body is larger than {self.limit} bytes")
+
+
+def _replay(body: bytes, receive: Receive) -> Receive:
+    """A `receive` that hands over the body already read, then waits as the original does."""
+    sent = False
+
+    async def replay() -> Message:
+        nonlocal sent
+        if sent:
+            return await receive()
+        sent = True
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    return replay
+
+
+def error(status: int, detail: str, **extra: Any) -> JSONResponse:
+    return JSONResponse({"detail": detail, **extra}, status)
+
+
+def _printable(value: object, limit: int) -> str:
+    """A piece of an error message: valid unicode, at most `limit` characters."""
+    text = str(value).encode("utf-8", "backslashreplace").decode("utf-8")
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+async def _invalid_request(request: Request, problem: Exception) -> JSONResponse:
+    assert isinstance(problem, RequestValidationError)
+    problems = [
+        {
+            "loc": [_printable(part, 60) for part in item.get("loc", ())],
+            "msg": _printable(item.get("msg", "invalid"), 200),
+            "type": _printable(item.get("type", "invalid"), 60),
+        }
+        for item in problem.errors()[:MAX_PROBLEMS]
+    ]
+    detail = "; ".join(f"{'.'.join(p['loc'])}: {p['msg']}" for p in problems)
+    return error(422, detail or "invalid request", errors=problems)
+
+
+async def _database_busy(request: Request, problem: Exception) -> JSONResponse:
+    response = error(503, f"the database is busy ({_printable(problem, 100)}); retry shortly")
+    response.headers["retry-after"] = "1"
+    return response
+
+
+async def _internal_error(request: Request, problem: Exception) -> JSONResponse:
+    return error(500, "internal error: the server's log has the details")
+
+
+def add_error_handlers(app: FastAPI) -> None:
+    app.add_exception_handler(RequestValidationError, _invalid_request)
+    app.add_exception_handler(sqlite3.OperationalError, _database_busy)
+    app.add_exception_handler(Exception, _internal_error)
