@@ -107,6 +107,7 @@ def test_a_custom_factory_trains_and_its_recorded_frames_are_labelled_on_the_pag
     assert trainer.counters.asked == 6 and trainer.env.clip_source == "frames"
     page = Page(tmp_path / "labels", "sequential", 3, task=CUSTOM, segment_length=20)
     try:
+        assert page.state()["clip_source"] == "frames"  # the page says where clips come from
         for _ in range(3):
             question, reply = page.answer("left")
             assert reply.status_code == 200

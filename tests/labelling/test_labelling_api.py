@@ -9,6 +9,7 @@ import av
 import pytest
 
 from seqrank.feedback.label_file import parse_lines
+from seqrank.labelling import CLIP_SIZE
 from support.pages import Page
 
 TASK = "dmc:cartpole_swingup"
@@ -130,7 +131,7 @@ def test_clips_are_h264_mp4_of_the_whole_segment(page):
         stream = container.streams.video[0]
         assert stream.codec_context.name == "h264"
         frames = list(container.decode(stream))
-    assert len(frames) == 50 and (frames[0].width, frames[0].height) == (128, 128)
+    assert len(frames) == 50 and (frames[0].width, frames[0].height) == (CLIP_SIZE, CLIP_SIZE)
     assert page.client.get("/api/clips/99999.mp4").status_code == 404
     assert page.client.get("/api/clips/abc.mp4").status_code == 422
 

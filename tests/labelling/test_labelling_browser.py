@@ -142,17 +142,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
             assert sorted(roles) == ["defender · stays", "new challenger"]
             defender_side = "left" if "defender" in page.inner_text("#left-role") else "right"
 
-            page.wait_for_timeout(1500)  # a person's time to decide: the next clips render
-            page.evaluate("window.answeredAt = performance.now()")
             page.keyboard.press("ArrowLeft")
-            page.wait_for_function(  # the next question's clips decoded and showing
-                "document.getElementById('progress').textContent.includes('question 2 of 6')"
-                " && ['left-video', 'right-video']"
-                ".every(id => document.getElementById(id).readyState >= 2)",
-                timeout=30_000,
-            )
-            shown_after = page.evaluate("performance.now() - window.answeredAt")
-            print(f"\nnext question's clips shown {shown_after:.0f} ms after the answer")
             wait_question(page, 2, 6)
             page.click("#right")
             wait_question(page, 3, 6)
@@ -375,5 +365,53 @@ def test_pages_from_another_origin_can_neither_read_nor_write(tmp_path, caplog):
         refused = [r.getMessage() for r in caplog.records if r.name.endswith("access")]
         assert any("POST /api/answer: requests from" in m for m in refused), refused
         assert hub.db.answered_questions() == []
+    finally:
+        stop(hub, server)
+
+
+WATCH_NEXT_CLIPS = """(progress) => {
+    const started = performance.now();
+    window.clipsShownAfter = null;
+    const check = () => {
+        const shown = document.getElementById('progress').textContent.includes(progress)
+            && ['left-video', 'right-video']
+                .every(id => document.getElementById(id).readyState >= 2);
+        if (shown) window.clipsShownAfter = performance.now() - started;
+        else setTimeout(check, 1);
+    };
+    check();
+}"""
+
+
+def test_the_next_clips_show_moments_after_an_answer(tmp_path):
+    """Once the session's clips are rendered (ahead, while the person decides), the next
+    question's clips show from the page's memory: printed, not asserted (machines differ)."""
+    hub, server, _ = serve_offline(tmp_path / "labels", TASK, "sequential", 4, 0.0)
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, server.url)
+            wait_question(page, 1, 4)
+            deadline = time.monotonic() + 120
+            while not (hub.upcoming and all(hub.renderer.path(s).exists() for s in hub.upcoming)):
+                assert time.monotonic() < deadline, "the session's clips were never rendered"
+                time.sleep(0.1)
+            page.wait_for_timeout(2500)  # the page's next look at the state loads them
+            delays = []
+            for number in (2, 3, 4):
+                # timed inside the page, from the key press to the first moment the next
+                # question's two clips are decoded (checked every millisecond)
+                page.evaluate(WATCH_NEXT_CLIPS, f"question {number} of 4")
+                page.keyboard.press("ArrowLeft")
+                page.wait_for_function("() => window.clipsShownAfter !== null", timeout=30_000)
+                delays.append(page.evaluate("() => window.clipsShownAfter"))
+            shown = ", ".join(f"{d:.0f}" for d in delays)
+            print(f"\nnext question's clips shown {shown} ms after each answer")
+            assert all(
+                src.startswith("blob:")
+                for src in page.evaluate(
+                    "() => ['left-video', 'right-video'].map(id => document.getElementById(id).src)"
+                )
+            )  # from memory, not fetched after the answer
+            browser.close()
     finally:
         stop(hub, server)

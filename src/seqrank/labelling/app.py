@@ -106,6 +106,10 @@ def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
     token = page_token(options.host, options.token)
     settings = PageSettings(options.countdown_s, options.annotator, token)
     hub = Hub(db, settings)
+    if canonical_task(task)[0] in ("gym", "custom"):  # the others all re-render from state
+        probe = make_env(task, 0)
+        hub.clip_source = probe.clip_source
+        probe.close()
 
     def make_frames() -> Callable[[int], np.ndarray]:
         env = make_env(task, 0)

@@ -50,6 +50,8 @@ class Hub:
     scheme: str = ""
     sessions_total: int = 0
     survey_run: str | None = None
+    upcoming: list[int] = field(default_factory=list)  # the session's segments, to prefetch
+    clip_source: str = "state"  # clips re-rendered from saved states, or recorded "frames"
 
     def set_phase(self, phase: str, message: str) -> None:
         self.phase, self.message = phase, message
@@ -88,8 +90,9 @@ class HumanSource:
             stored_choices=db.stored_choices(self.run, request.session),
         )
         self.hub.run, self.hub.scheme = self.run, request.scheme
+        self.hub.upcoming = sorted(page_session.segment_ids.values())
         if self.hub.renderer is not None:  # render the pool ahead of the questions
-            self.hub.renderer.ahead(sorted(page_session.segment_ids.values()))
+            self.hub.renderer.ahead(self.hub.upcoming)
         scheme = get_scheme(request.scheme)
         record = scheme(
             len(pool.features),

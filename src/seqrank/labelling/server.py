@@ -2,9 +2,11 @@
 
 Endpoints (all JSON unless said otherwise; errors are `{"detail": "..."}` with a 4xx code):
 - `GET /`                      the page (static HTML/JS/CSS, no build step)
-- `GET /api/state`             what to show now: a question, training, a survey, or done
+- `GET /api/state`             what to show now: a question, training, a survey, or done;
+                               with a question, `prefetch`: rendered clips to load ahead
 - `POST /api/answer`           `{question_id, choice, latency_ms}`; choice is left / right /
-                               equal / skip / timeout; committed before the reply
+                               equal / skip / timeout; committed before the reply, which
+                               carries `next`, the state once the next question is posed
 - `GET /api/clips/{id}.mp4`    a segment's clip (rendered on first request, then cached)
 - `POST /api/survey`           `{run, satisfaction 1-5, criteria}` after a study method
 - `GET /api/labels.jsonl`      every answer so far in the documented JSONL format
@@ -17,6 +19,7 @@ the page gets when it is opened with `?token=`.
 
 from __future__ import annotations
 
+import time
 from importlib import resources
 from typing import Annotated, Literal
 
@@ -39,6 +42,8 @@ from seqrank.labelling.limits import (
 )
 
 STATIC = resources.files("seqrank.labelling") / "static"
+NEXT_WAIT_S = 0.5  # an answer's reply waits this long at most for the next question
+PREFETCH_CLIPS = 8  # rendered clips offered to the page for loading ahead
 # strict: no "1" for 1 or true for 1; finite floats only; nothing beyond the fields
 STRICT = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
@@ -85,21 +90,7 @@ def _question_routes(hub: Hub) -> APIRouter:
 
     @router.get("/api/state")
     def state() -> dict[str, object]:
-        common: dict[str, object] = {
-            "run": hub.run,
-            "scheme": hub.scheme,
-            "annotator": settings.annotator,
-            "countdown_s": settings.countdown_s,
-            "sessions": hub.sessions_total,
-            "message": hub.message,
-        }
-        question = db.pending_question()
-        if question is not None:
-            return {**common, **_question_state(hub, question)}
-        if hub.phase == "survey" and hub.survey_run is not None:
-            return {**common, "status": "survey", "survey_run": hub.survey_run}
-        status = "done" if hub.phase == "done" else "waiting"
-        return {**common, "status": status}
+        return page_state(hub)
 
     @router.post("/api/answer")
     def answer(body: AnswerIn) -> dict[str, object]:
@@ -117,9 +108,52 @@ def _question_routes(hub: Hub) -> APIRouter:
             "duplicate": duplicate,
             "question_id": question.id,
             "answer": stored.answer,
+            "next": _next_state(hub, question.id),
         }
 
     return router
+
+
+def page_state(hub: Hub) -> dict[str, object]:
+    """What the page shows now: a question, a survey, waiting or done."""
+    common: dict[str, object] = {
+        "run": hub.run,
+        "scheme": hub.scheme,
+        "annotator": hub.settings.annotator,
+        "countdown_s": hub.settings.countdown_s,
+        "sessions": hub.sessions_total,
+        "message": hub.message,
+        "clip_source": hub.clip_source,
+    }
+    question = hub.db.pending_question()
+    if question is not None:
+        return {**common, **_question_state(hub, question), "prefetch": _prefetch(hub, question)}
+    if hub.phase == "survey" and hub.survey_run is not None:
+        return {**common, "status": "survey", "survey_run": hub.survey_run}
+    status = "done" if hub.phase == "done" else "waiting"
+    return {**common, "status": status}
+
+
+def _next_state(hub: Hub, answered: int) -> dict[str, object]:
+    """The state after an answer, once the next question is posed (it usually is within
+    milliseconds): the page shows it without another request. At most NEXT_WAIT_S."""
+    deadline = time.monotonic() + NEXT_WAIT_S
+    while True:
+        pending = hub.db.pending_question()
+        moved_on = pending is not None and pending.id != answered
+        if moved_on or hub.phase in ("survey", "done") or time.monotonic() > deadline:
+            return page_state(hub)
+        time.sleep(0.005)
+
+
+def _prefetch(hub: Hub, question: StoredQuestion) -> list[str]:
+    """Clips of the session's other segments that are rendered already: the page loads
+    them while the person decides, so the next question's clips show at once."""
+    if hub.renderer is None:
+        return []
+    shown = {question.left, question.right}
+    ready = [s for s in hub.upcoming if s not in shown and hub.renderer.path(s).exists()]
+    return [f"/api/clips/{s}.mp4" for s in ready[:PREFETCH_CLIPS]]
 
 
 def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:

@@ -23,6 +23,62 @@ let countdownS = 0;
 let timerFrame = 0;
 let pollTimer = 0;
 let answeredAt = -1e9;   // when the last answer was acknowledged (ms, performance clock)
+let answeredId = null;   // the question last answered here, never shown again
+const CLIPS_KEPT = 40;
+// clip address -> {objectUrl, video}: its bytes in memory and a video element that has
+// decoded its first frame already (used once, by swapping it into place); null: loading
+const clips = new Map();
+const shownClips = () => new Set(["left-video", "right-video"].map((id) => $(id).dataset.clip));
+
+// Load the clips the server offers while the person decides: the next question's clips
+// then show at once. The oldest are let go beyond CLIPS_KEPT.
+function prefetch(urls) {
+  for (const url of urls || []) {
+    if (clips.has(url)) continue;
+    clips.set(url, null);
+    fetch(url, { credentials: "same-origin" })
+      .then((response) => (response.ok ? response.blob() : null))
+      .then((blob) => {
+        if (!blob) return clips.delete(url);
+        const objectUrl = URL.createObjectURL(blob);
+        clips.set(url, { objectUrl, video: decodedVideo(objectUrl) });
+      })
+      .catch(() => clips.delete(url));
+  }
+  const shown = shownClips();
+  for (const [url, entry] of clips) {
+    if (clips.size <= CLIPS_KEPT) break;
+    if (entry === null || shown.has(url)) continue;
+    URL.revokeObjectURL(entry.objectUrl);
+    clips.delete(url);
+  }
+}
+
+function decodedVideo(src) {
+  const video = document.createElement("video");
+  Object.assign(video, { muted: true, loop: true, playsInline: true, autoplay: true, preload: "auto" });
+  video.src = src;
+  video.load();
+  return video;
+}
+
+// Put clip `url` on one side: a clip already there stays (the defender keeps playing), a
+// decoded one is swapped in, anything else loads from memory or from the server.
+function placeClip(name, url) {
+  let video = $(`${name}-video`);
+  if (video.dataset.clip === url && video.readyState >= 2) return;
+  const entry = clips.get(url);
+  if (entry && entry.video) {
+    entry.video.id = video.id;
+    video.replaceWith(entry.video);
+    video = entry.video;
+    entry.video = null; // in the page now; a later showing loads from memory
+  } else {
+    video.src = entry ? entry.objectUrl : url; // the cookie carries the access
+    video.load();
+  }
+  video.dataset.clip = url;
+}
 
 function show(name) {
   for (const s of sections) $(s).hidden = s !== name;
@@ -111,11 +167,17 @@ async function poll() {
 function render(state) {
   countdownS = state.countdown_s || 0;
   $("who").textContent = state.annotator ? `annotator: ${state.annotator}` : "";
+  $("clip-source").textContent = state.clip_source === "frames"
+    ? "clips: frames recorded while the episode was played"
+    : "clips: re-rendered from the saved simulator state";
   if (state.status === "question") {
+    prefetch(state.prefetch);
     const q = state.question;
+    if (q.id === answeredId) return schedule(40); // a reply sent before the answer landed
     const sessions = state.sessions ? ` of ${state.sessions}` : "";
     $("progress").textContent = `${state.scheme} · session ${q.session}${sessions} · question ${q.index} of ${q.questions}`;
     if (!current || current.id !== q.id) showQuestion(q);
+    schedule(1500); // while the person decides: more clips may have been rendered
     show("asking");
     return;
   }
@@ -155,10 +217,7 @@ function showQuestion(q) {
     const role = $(`${name}-role`);
     role.className = `role ${side.role || ""}`;
     role.textContent = side.role === "defender" ? "defender · stays" : side.role === "challenger" ? "new challenger" : "";
-    const video = $(`${name}-video`);
-    video.dataset.ready = "";
-    video.src = side.clip; // the cookie carries the access, never the address
-    video.load();
+    placeClip(name, side.clip);
   }
   setButtons(true);
   $("countdown-text").textContent = countdownS > 0 ? "loading clips…" : "no time limit";
@@ -175,8 +234,10 @@ function waitForClips(id) {
     for (const v of videos) v.play().catch(() => {});
     startCountdown();
   };
+  for (const v of videos) v.dataset.ready = "";
   for (const v of videos) {
     const mark = () => { v.dataset.ready = "1"; if (videos.every((x) => x.dataset.ready)) start(); };
+    if (v.readyState >= 2) { mark(); continue; } // decoded already: no event will come
     v.addEventListener("loadeddata", mark, { once: true });
     v.addEventListener("error", mark, { once: true });
   }
@@ -214,11 +275,14 @@ async function answer(choice) {
   const latency = shownAt ? performance.now() - shownAt : 0;
   const body = { question_id: current.id, choice, latency_ms: Math.max(0, latency) };
   sessionStorage.setItem(PENDING, JSON.stringify(body));
-  await deliver(body);
+  const reply = await deliver(body);
+  if (reply) answeredId = body.question_id; // stored: a late reply showing it is stale
   current = null;
   busy = false;
   answeredAt = performance.now();
-  poll();
+  // the reply carries the state after the answer: the next question shows without a poll
+  if (reply && reply.ok && reply.data && reply.data.next) render(reply.data.next);
+  else poll();
 }
 
 // Deliver a kept answer; it is forgotten only once the server has said what became of it.
@@ -233,7 +297,7 @@ async function deliver(body) {
   sessionStorage.removeItem(PENDING);
   if (reply.ok) {
     showError("");
-    return;
+    return reply;
   }
   const what = reply.status === 409
     ? "This question was answered in another tab or window, so this answer was not stored"
