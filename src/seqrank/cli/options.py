@@ -115,7 +115,12 @@ def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None
         type=Path,
         metavar="RUN_DIR",
         default=argparse.SUPPRESS,
-        help="continue a killed run from its last checkpoint",
+        help="continue a stopped run from its last checkpoint",
+    )
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the settings and print them (or the state of --resume's run); write nothing",
     )
     for f in fields(TrainConfig):
         if f.name == "scale":

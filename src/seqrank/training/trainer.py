@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -62,12 +63,7 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
         self.eval_env = make_env(config.task, config.seed)
-        if config.first_session_step < self.env.episode_length:
-            raise ValueError(
-                f"the first feedback session (step {config.first_session_step}) comes before "
-                f"the first complete episode ({self.env.episode_length} steps); raise "
-                "--seed-steps or --unsup-steps"
-            )
+        _check_episode_fits(config, self.env.episode_length)
         self.runtime = runtime = resolve_runtime(
             config.device, config.path, config.precision, self.env.discrete
         )
@@ -93,6 +89,8 @@ class Trainer:
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
         self.counters = Counters()
+        # set (by a signal handler, say) to stop at the next episode end with a checkpoint
+        self.stop_requested = threading.Event()
         self._assemble_phases(wait_for_feedback)
 
     def _assemble_phases(self, wait_for_feedback: bool) -> None:
@@ -183,6 +181,24 @@ class Trainer:
 
     def load_checkpoint(self, state: dict[str, Any]) -> None:
         load_checkpoint(self, state)
+
+
+def _check_episode_fits(config: TrainConfig, episode_length: int) -> None:
+    """Segments are cut from complete episodes, the first ones by the first session."""
+    if not config.reward.asks:
+        return
+    if config.segment_length > episode_length:
+        raise ValueError(
+            f"segment_length {config.segment_length} is longer than an episode of "
+            f"{config.task} ({episode_length} steps), so no segment can be cut; accepted: "
+            f"1 to {episode_length}"
+        )
+    if config.first_session_step < episode_length:
+        raise ValueError(
+            f"the first feedback session (step {config.first_session_step}) comes before "
+            f"the first complete episode ({episode_length} steps); raise "
+            "--seed-steps or --unsup-steps"
+        )
 
 
 def open_trainer(
