@@ -100,7 +100,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
         (["--device", "tpu"], "unknown device 'tpu'; accepted: auto, cpu, cuda"),
         (["--max-feedback", "100000", "--reward-batch", "10"], "impossible budget"),
         (["--reward-batch", "500", "--max-feedback", "100"], "exceeds max_feedback"),
-        (["--steps", "-5"], "steps must be positive, got -5"),
+        (["--steps", "-5"], "steps must be a whole number from 1 to 2147483647, got -5"),
         (["--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
         (["--resume", "/nonexistent/run"], "no run directory at /nonexistent/run"),
         (["--path", "quick"], "unknown path 'quick'; accepted: auto, reference, fast"),

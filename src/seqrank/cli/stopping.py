@@ -32,7 +32,9 @@ class StopSignal:
 
 
 @contextlib.contextmanager
-def stop_on_signals(on_stop: Callable[[], None], say: Callable[[str], None]) -> Iterator[StopSignal]:
+def stop_on_signals(
+    on_stop: Callable[[], None], say: Callable[[str], None]
+) -> Iterator[StopSignal]:
     """Within the block, the first SIGINT/SIGTERM calls `on_stop`, a second interrupts."""
     stop = StopSignal()
     if threading.current_thread() is not threading.main_thread():

@@ -115,7 +115,8 @@ def prepare_run(
     if hasattr(args, "resume"):
         _refuse_new_settings(args)
         if args.dry_run:
-            return _dry_resume(args.resume, err)
+            _dry_resume(args.resume, err)
+            return None
         started = continue_run(args.resume, trainer_cls)
         if not started.finished:
             err.print(f"resuming {started.run.path} at step {started.trainer.counters.step}")

@@ -32,7 +32,7 @@ Factory = Callable[[TrainConfig, RunDir], Any]
 class Started:
     run: RunDir
     config: TrainConfig
-    trainer: Any | None  # None: the run is finished
+    trainer: Any  # None: the run is finished
     resumed: bool
 
     @property
