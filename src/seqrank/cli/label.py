@@ -19,10 +19,10 @@ from seqrank.cli.label_page import (
 )
 from seqrank.cli.label_study import add_study, run_study
 from seqrank.cli.options import Parser, add_run_options, positive, seed_number
-from seqrank.cli.stopping import stop_on_signals
 from seqrank.cli.train import prepare_run, say_finished
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
+from seqrank.training.stopping import stop_on_signals
 
 
 def add_parser(commands: Any) -> None:

@@ -15,9 +15,9 @@ from seqrank.cli.label_page import (
     server_options,
 )
 from seqrank.cli.options import add_run_options
-from seqrank.cli.stopping import stop_on_signals
 from seqrank.cli.train import new_run
 from seqrank.feedback.schemes import SCHEMES
+from seqrank.training.stopping import stop_on_signals
 
 
 def add_study(modes: Any) -> None:

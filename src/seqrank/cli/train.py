@@ -61,8 +61,8 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
 
 
 def _train(started: Started, out: Console, err: Console, quiet: bool) -> int:
-    from seqrank.cli.stopping import stop_on_signals
     from seqrank.training.loop import RunStopped
+    from seqrank.training.stopping import stop_on_signals
 
     trainer, run = started.trainer, started.run
     again = f"continue with: seqrank train --resume {run.path}"
