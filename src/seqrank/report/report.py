@@ -2,9 +2,10 @@
 
 Methods are schemes; when a folder mixes backbones, teachers or scales they join the method
 name (`root/mrn/mistake/small`), and runs of one task and method that differ in any other
-setting are kept apart, with the settings in their name and a note (`report/groups.py`). Baseline runs (`--reward true` or `none`) are the methods
-`true-reward` and `no-feedback`; with a true-reward run in the folder, every curve shows it
-as a reference line and every method's score is also given relative to it. Outputs in
+setting are kept apart, with the settings in their name and a note (`report/groups.py`).
+Baseline runs (`--reward true` or `none`) are the methods `true-reward` and `no-feedback`;
+with a true-reward run in the folder, every curve shows it as a reference line and every
+method's score is also given relative to it. Outputs in
 `--out` (default RUNS_DIR/report): `report.md`, `report.csv` (one row per task and method),
 `report.json`, `curves_<task>.png` and `feedback_<task>.png`.
 """
