@@ -80,7 +80,7 @@ def _add_offline(modes: Any) -> None:
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     def say(text: str) -> None:
-        err.print(text, highlight=False)
+        err.print(text, highlight=False, markup=False, soft_wrap=True)
 
     page_options(args)  # check the page options before anything is created
     check_address(args.host, args.port)

@@ -35,8 +35,8 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
 
     folder = args.out or args.runs_dir / "report"
     try:
-        check_folder(folder, "report folder")
         report = build_report(args.runs_dir, args.bootstrap, args.seed)
+        check_folder(folder, "report folder")
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     for note in report["notes"]:

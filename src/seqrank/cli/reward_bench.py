@@ -125,9 +125,12 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.feedback.teachers import parse_teacher
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import run_grid as grid
+    from seqrank.rewardbench.pool import load_pool
     from seqrank.rewardbench.summary import format_table, plot_task, summarise
 
     try:
+        for path in args.pool:
+            load_pool(path)  # each pool checked before anything is made
         check_folder(args.out, "--out")
         for teacher in args.teachers:
             if parse_teacher(teacher).kind != "scripted":

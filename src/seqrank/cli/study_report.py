@@ -27,10 +27,10 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.labelling.study import format_report, study_report
 
     try:
+        report = study_report(args.study_dir)
         if args.json is not None:
             check_file(args.json, "--json")
         check_file(args.study_dir / "study-report.md", "study report")
-        report = study_report(args.study_dir)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     text = format_report(report)

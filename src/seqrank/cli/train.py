@@ -66,26 +66,27 @@ def _train(started: Started, out: Console, err: Console, quiet: bool) -> int:
 
     trainer, run = started.trainer, started.run
     again = f"continue with: seqrank train --resume {run.path}"
-    with stop_on_signals(trainer.stop_requested.set, lambda text: err.print(text)) as stop:
+    with stop_on_signals(trainer.stop_requested.set, lambda text: _say(err, text)) as stop:
         try:
             summary = _train_with_progress(trainer, started.config, err, quiet)
         except RunStopped as stopped:
-            err.print(f"stopped at step {stopped.step:,}, checkpoint saved; {again}")
+            _say(err, f"stopped at step {stopped.step:,}, checkpoint saved; {again}")
             return stop.exit_code()
         except KeyboardInterrupt:
             kept = trainer.counters.last_checkpoint_step
-            err.print(f"stopped at once; the checkpoint of step {kept:,} is kept; {again}")
+            _say(err, f"stopped at once; the checkpoint of step {kept:,} is kept; {again}")
             return stop.exit_code()
     _print_summary(out, summary, run)
     return 0
 
 
+def _say(err: Console, text: str) -> None:
+    err.print(text, highlight=False, markup=False, soft_wrap=True)
+
+
 def say_finished(started: Started, err: Console) -> None:
-    err.print(
-        f"run {started.run.path} is finished ({started.config.steps:,} steps, summary.json); "
-        "nothing to resume, nothing changed",
-        highlight=False,
-    )
+    path, steps = started.run.path, started.config.steps
+    _say(err, f"run {path} is finished ({steps:,} steps, summary.json); nothing to resume")
 
 
 @dataclass(frozen=True)
@@ -155,7 +156,7 @@ def _dry_resume(path: Path, err: Console) -> None:
         checkpoint = run.load_checkpoint()
         step = 0 if checkpoint is None else checkpoint["counters"]["step"]
         state = f"resumes at step {step:,} of {config.steps:,}"
-    err.print(f"{path}: {config.task}, settings valid; {state} (dry run)", highlight=False)
+    _say(err, f"{path}: {config.task}, settings valid; {state} (dry run)")
 
 
 def _describe(config: TrainConfig, path: Path, new: NewRun, err: Console) -> None:

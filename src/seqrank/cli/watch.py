@@ -37,10 +37,12 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_folder
+    from seqrank.training.runs import RunDir
     from seqrank.watch import watch
 
     folder = args.out or args.run / "watch"
     try:
+        RunDir.open(args.run).read_config()
         check_folder(folder, "watch folder")
         episodes, video, sheet = watch(args.run, args.episodes, folder, args.size, args.fps)
     except (ValueError, FileNotFoundError) as problem:
