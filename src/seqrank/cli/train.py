@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     import torch
 
     from seqrank.training.launch import Started
+    from seqrank.training.stopping import StopSignal
 
 
 def add_parser(commands: Any) -> None:
@@ -42,40 +44,46 @@ def add_parser(commands: Any) -> None:
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    """Ctrl-C or SIGTERM from here on stop the run at its next episode end, with a
+    checkpoint (before training starts: at once, the directory left to --resume)."""
     from seqrank.training.runtime import resolve_device
+    from seqrank.training.stopping import stop_on_signals
     from seqrank.training.trainer import Trainer
 
-    try:
-        started = prepare_run(args, err, Trainer, resolve_device)
-    except (ValueError, FileNotFoundError, FileExistsError) as problem:
-        raise UsageError(str(problem)) from None
-    if started is None:
-        return 0  # --dry-run
-    try:
-        if started.finished:
-            say_finished(started, err)
-            return 0
-        return _train(started, out, err, args.quiet)
-    finally:
-        started.run.release()
+    stopping = threading.Event()
+    with stop_on_signals(stopping.set, lambda text: _say(err, text)) as stop:
+        try:
+            started = prepare_run(args, err, Trainer, resolve_device)
+        except (ValueError, FileNotFoundError, FileExistsError) as problem:
+            raise UsageError(str(problem)) from None
+        except KeyboardInterrupt:
+            return stop.exit_code()
+        if started is None:
+            return 0  # --dry-run
+        try:
+            if started.finished:
+                say_finished(started, err)
+                return 0
+            started.trainer.stop_requested = stopping
+            return _train(started, out, err, args.quiet, stop)
+        finally:
+            started.run.release()
 
 
-def _train(started: Started, out: Console, err: Console, quiet: bool) -> int:
+def _train(started: Started, out: Console, err: Console, quiet: bool, stop: StopSignal) -> int:
     from seqrank.training.loop import RunStopped
-    from seqrank.training.stopping import stop_on_signals
 
     trainer, run = started.trainer, started.run
     again = f"continue with: seqrank train --resume {run.path}"
-    with stop_on_signals(trainer.stop_requested.set, lambda text: _say(err, text)) as stop:
-        try:
-            summary = _train_with_progress(trainer, started.config, err, quiet)
-        except RunStopped as stopped:
-            _say(err, f"stopped at step {stopped.step:,}, checkpoint saved; {again}")
-            return stop.exit_code()
-        except KeyboardInterrupt:
-            kept = trainer.counters.last_checkpoint_step
-            _say(err, f"stopped at once; the checkpoint of step {kept:,} is kept; {again}")
-            return stop.exit_code()
+    try:
+        summary = _train_with_progress(trainer, started.config, err, quiet)
+    except RunStopped as stopped:
+        _say(err, f"stopped at step {stopped.step:,}, checkpoint saved; {again}")
+        return stop.exit_code()
+    except KeyboardInterrupt:
+        kept = trainer.counters.last_checkpoint_step
+        _say(err, f"stopped at once; the checkpoint of step {kept:,} is kept; {again}")
+        return stop.exit_code()
     _print_summary(out, summary, run)
     return 0
 
