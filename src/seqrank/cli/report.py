@@ -40,7 +40,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     for note in report["notes"]:
-        err.print(f"note: {note}", highlight=False)
+        err.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
     written = write_report(report, folder, not args.no_plots)
     out.print(format_markdown(report), markup=False, highlight=False)
     err.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
