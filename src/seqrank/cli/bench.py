@@ -77,6 +77,9 @@ def add_parser(commands: Any) -> None:
         type=Path,
         help="output path without suffix (default: seqrank-out/bench/bench-<device>)",
     )
+    bench.add_argument(
+        "--dry-run", action="store_true", help="check the options, print the plan, time nothing"
+    )
     bench.set_defaults(handler=run)
 
 
@@ -96,6 +99,15 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         plan = BenchPlan.build(args.task, args.scale, device, precisions, overrides, args)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    if args.dry_run:
+        variants = ", ".join(v.name for v in plan.variants)
+        err.print(
+            f"options valid: {plan.config.task} on {device}, {variants}; "
+            f"{plan.total_measurements} measurements, output {path} (dry run)",
+            highlight=False,
+            soft_wrap=True,
+        )
+        return 0
     with progress_bar(err) as bar:
         task = bar.add_task("bench", total=plan.total_measurements)
         result = run_bench(

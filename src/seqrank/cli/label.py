@@ -83,7 +83,8 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         err.print(text, highlight=False, markup=False, soft_wrap=True)
 
     page_options(args)  # check the page options before anything is created
-    check_address(args.host, args.port)
+    if not getattr(args, "dry_run", False):
+        check_address(args.host, args.port)
     try:
         if args.mode == "offline":
             return _offline(args, say)

@@ -141,6 +141,10 @@ def prepare_run(
     if wandb is not None:
         _check_wandb(wandb)
     if args.dry_run:
+        if config.teacher_spec.kind == "replay":
+            from seqrank.feedback.sources import make_source
+
+            make_source(config.teacher)  # the label file is read and checked
         _describe(config, path, new, err)
         return None
     started = start_new(path, config, str(new.device), trainer_cls, wandb)
