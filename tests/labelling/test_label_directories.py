@@ -67,3 +67,18 @@ def test_one_label_process_per_directory_ctrl_c_exports_and_changed_settings_are
         "root (not sequential); rerun with its settings to continue, or choose another --out"
     ) in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_study_rerun_with_other_settings_is_refused_before_the_page_starts(tmp_path, capsys):
+    from seqrank.training.runs import RunDir
+    from support.runs import tiny_config
+
+    begun = tiny_config(scheme="root", teacher="human", record_states=1)
+    RunDir.create(tmp_path / "study" / "p1" / "root", begun, "cpu").release()
+    args = ["label", "study", "--participant", "p1", "--study-dir", str(tmp_path / "study")]
+    settings = [f"--{k.replace('_', '-')}={v}" for k, v in begun.as_dict().items()]
+    kept = [s for s in settings if s.split("=")[0] not in ("--scheme", "--teacher", "--scale")]
+    assert main([*args, "--methods", "root", "--port", "0", *kept, "--max-feedback=20"]) == 2
+    err = capsys.readouterr().err
+    assert "participant p1 began method root with other settings (max_feedback 30 -> 20)" in err
+    assert len(err.strip().splitlines()) == 1

@@ -53,6 +53,11 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
         say(f"settings valid for {', '.join(methods)} (dry run: nothing written)")
         return 0
     lock = take_directory(participant_dir, "participant directory")
+    try:
+        _check_started_runs(participant_dir, configs)
+    except ValueError:
+        lock.release()
+        raise
     order = study_order(args.study_dir, args.participant, methods)
     hub = open_hub(participant_dir, new.task, page_options(args))
     hub.sessions_total = 0
@@ -69,6 +74,22 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
         finish(hub, server, participant_dir, args, say)
     lock.release()
     return stop.exit_code(0) if stop.received else 0
+
+
+def _check_started_runs(participant_dir: Path, configs: dict[str, Any]) -> None:
+    """A method's run made with other settings is named before anything starts."""
+    from seqrank.config import config_differences
+    from seqrank.training.runs import RunDir
+
+    for method, config in configs.items():
+        if (participant_dir / method / "config.json").is_file():
+            saved = RunDir.open(participant_dir / method).read_config()
+            changed = config_differences(saved, config)
+            if changed:
+                raise ValueError(
+                    f"participant {participant_dir.name} began method {method} with other "
+                    f"settings ({'; '.join(changed)}); rerun with them to continue"
+                )
 
 
 class _Study:
