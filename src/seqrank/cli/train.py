@@ -173,13 +173,13 @@ def _dry_resume(path: Path, err: Console) -> None:
 
 def _describe(config: TrainConfig, path: Path, new: NewRun, err: Console) -> None:
     """What --dry-run prints: the resolved settings and where the run would go."""
-    err.print(
+    _say(
+        err,
         f"settings valid ({new.scale} preset, device {new.device}); run directory would be "
         f"{path} (dry run: nothing written)",
-        highlight=False,
     )
     for name, value in config.as_dict().items():
-        err.print(f"  {name} = {value}", highlight=False)
+        _say(err, f"  {name} = {value}")
 
 
 def _check_wandb(project: str) -> None:
