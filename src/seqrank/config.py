@@ -237,6 +237,9 @@ def resolve_config(task: str, scale: str, overrides: dict[str, Any]) -> TrainCon
 # simulators accept.
 MAX_COUNT = 2**31 - 1
 MAX_SEED = 2**32 - 1
+# settings whose size each feedback session allocates at once: a candidate pool this many
+# times what the scheme needs, and this many held-out segment pairs
+MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
 FROM_ZERO = ("seed", "unsup_steps", "updates_after_reset", "record_states")
 AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
 
@@ -248,7 +251,7 @@ def check_setting(name: str, value: Any) -> None:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"{name} must be a whole number, got {value!r}")
         low = 0 if name in FROM_ZERO else 1
-        high = {"seed": MAX_SEED, "record_states": 1}.get(name, MAX_COUNT)
+        high = MAX.get(name, MAX_COUNT)
         if not low <= value <= high:
             raise ValueError(f"{name} must be a whole number from {low} to {high}, got {value}")
         return

@@ -68,6 +68,12 @@ CASES = [
     ([*TRAIN, "--record-states", "2"], "record_states must be a whole number from 0 to 1, got 2"),
     ([*TRAIN, "--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
     ([*TRAIN, "--knn-k", "2000"], "knn_k 2000 must be smaller than seed_steps 1000"),
+    ([*TRAIN, "--oversample", "1000"], "oversample must be a whole number from 1 to 100, got"),
+    ([*TRAIN, "--heldout-pairs", "10000000"], "heldout_pairs must be a whole number from 1 to"),
+    (  # 1.2 TiB of replay buffer: more than any machine's memory
+        ["train", "--device", "cpu", "--task", "humanoid_walk", "--steps", "2147483647"],
+        "steps 2147483647: the replay buffer keeps every step, 1,264.0 GiB, more than the",
+    ),
     ([*TRAIN, "--max-feedback", "100000"], "impossible budget"),
     ([*TRAIN, "--segment-length", "5000"], "segment_length 5000 is longer than an episode"),
     ([*TRAIN, "--teacher", "replay:missing.jsonl"], "label file missing.jsonl does not exist"),

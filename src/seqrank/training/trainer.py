@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -69,6 +70,9 @@ class Trainer:
         )
         self.fast, device = runtime.fast, runtime.device
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
+        # the reference path keeps the buffer on the host and copies each batch over
+        storage = device if runtime.fast else torch.device("cpu")
+        _check_replay_fits(config.steps, obs_dim, act_dim, storage)
         self.agent = make_agent(config, self.env, runtime)
         self.reward_model = RewardModel(
             config.reward_ensemble,
@@ -78,8 +82,6 @@ class Trainer:
             config.reward_lr,
             device,
         )
-        # the reference path keeps the buffer on the host and copies each batch over
-        storage = device if runtime.fast else torch.device("cpu")
         train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
         self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
@@ -198,6 +200,20 @@ def _check_episode_fits(config: TrainConfig, episode_length: int) -> None:
             f"the first feedback session (step {config.first_session_step}) comes before "
             f"the first complete episode ({episode_length} steps); raise "
             "--seed-steps or --unsup-steps"
+        )
+
+
+def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.device) -> None:
+    """The replay buffer keeps every step of the run: it must fit where it is stored."""
+    needed = steps * ReplayBuffer.row_width(obs_dim, act_dim) * 4
+    if storage.type == "cuda":
+        total = torch.cuda.get_device_properties(storage).total_memory
+    else:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if needed > total:
+        raise ValueError(
+            f"steps {steps}: the replay buffer keeps every step, {needed / 2**30:,.1f} GiB, "
+            f"more than the {total / 2**30:,.1f} GiB of memory on {storage.type}; lower --steps"
         )
 
 
