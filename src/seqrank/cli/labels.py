@@ -49,7 +49,7 @@ def _export(directory: Path, output: Path) -> tuple[int, str]:
         return export_file(LabelDB(directory / DB_NAME), output), str(directory / DB_NAME)
     if not (directory / "config.json").is_file():
         raise ValueError(
-            f"{directory} holds neither {DB_NAME} (a labelling directory) nor config.json "
+            f"{directory} holds no {DB_NAME} (a labelling directory) nor config.json "
             "(a run directory)"
         )
     return _export_run(directory, output), f"run {directory}"
