@@ -113,7 +113,10 @@ CASES = [
     ([*STUDY, "--methods", "root,foo"], "--methods 'root,foo': give distinct schemes"),
     ([*STUDY, "--task", "dmc:cheetah_run", "--max-feedback", "200"], "impossible budget"),
     # labels
-    (["labels", "export", "{file}", "-o", "x.jsonl"], "{file} holds no labels.sqlite (a labelling directory) nor config.json"),
+    (
+        ["labels", "export", "{file}", "-o", "x.jsonl"],
+        "{file} holds no labels.sqlite (a labelling directory) nor config.json",
+    ),
     (["labels", "export", "{run}", "-o", "{dir}"], "label file {dir} is a folder"),
     (["labels", "import", "missing.jsonl", "new"], "label file missing.jsonl does not exist"),
     (["labels", "import", "{file}", "new"], "{file} line 1: not JSON"),
