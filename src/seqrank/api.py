@@ -106,27 +106,28 @@ def train(
     source: FeedbackSource | None = None,
     progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
-    """Train a run into the new directory `out` (or continue it, when `out` holds a killed
-    run of the same settings) and return its summary. `source` answers the questions in
-    place of the config's teacher; `progress(step, live)` is called every 100 steps."""
+    """Train a run into the new directory `out` (or continue it, when `out` holds a stopped
+    run of the same settings; a finished one is returned as it is) and return its summary.
+    `source` answers the questions in place of the config's teacher; `progress(step, live)`
+    is called every 100 steps. The directory is locked while it trains (ValueError when
+    another process holds it; a run of other settings is refused naming what differs)."""
+    from seqrank.training.launch import open_or_start
     from seqrank.training.runs import RunDir
     from seqrank.training.runtime import resolve_device
-    from seqrank.training.trainer import Trainer, open_trainer
-
-    path = Path(out)
+    from seqrank.training.trainer import Trainer
 
     def factory(settings: TrainConfig, run: RunDir) -> Trainer:
         return Trainer(settings, run, progress, source)
 
-    if (path / "config.json").exists():
-        run = RunDir.open(path)
-        if run.read_config() != config:
-            raise ValueError(f"{path} holds a run with other settings; choose another `out`")
-        trainer, _ = open_trainer(factory, config, run)
-    else:
-        device = str(resolve_device(config.device))
-        trainer = factory(config, RunDir.create(path, config, device))
-    return trainer.train()
+    device = str(resolve_device(config.device))
+    started = open_or_start(Path(out), config, device, factory)
+    try:
+        if started.finished:
+            return started.run.read_summary()
+        summary: dict[str, Any] = started.trainer.train()
+        return summary
+    finally:
+        started.run.release()
 
 
 @dataclass(frozen=True)

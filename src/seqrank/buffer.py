@@ -40,6 +40,11 @@ class ReplayBuffer:
     CUDA graph without reading it back.
     """
 
+    @staticmethod
+    def row_width(obs_dim: int, act_dim: int) -> int:
+        """Floats per stored transition: obs | action | next_obs | two rewards | not_done."""
+        return 2 * obs_dim + act_dim + 3
+
     def __init__(
         self,
         capacity: int,
@@ -56,7 +61,7 @@ class ReplayBuffer:
         self.capacity, self.device, self.train_on = capacity, device, train_on
         self.storage = storage if storage is not None else device
         widths = (obs_dim, act_dim, obs_dim, 1, 1, 1)
-        self.width = sum(widths)
+        self.width = self.row_width(obs_dim, act_dim)
         self.table = torch.zeros((capacity, self.width), dtype=torch.float32, device=self.storage)
         offsets = np.cumsum((0, *widths))
         self.columns = {

@@ -239,15 +239,58 @@ def resolve_config(task: str, scale: str, overrides: dict[str, Any]) -> TrainCon
     return config
 
 
+# The numeric settings' ranges: whole numbers from 1 (from 0 for these) to MAX_COUNT,
+# numbers finite and > 0 (and at most 1 for these); the seed is what numpy, torch and the
+# simulators accept.
+MAX_COUNT = 2**31 - 1
+MAX_SEED = 2**32 - 1
+# settings whose size each feedback session allocates at once: a candidate pool this many
+# times what the scheme needs, and this many held-out segment pairs
+MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
+FROM_ZERO = ("seed", "unsup_steps", "updates_after_reset", "record_states")
+AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
+
+
+def check_setting(name: str, value: Any) -> None:
+    """ValueError unless the numeric setting `name` holds a value in its range."""
+    kind = str(next(f.type for f in fields(TrainConfig) if f.name == name))
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"{name} must be a whole number, got {value!r}")
+        low = 0 if name in FROM_ZERO else 1
+        high = MAX.get(name, MAX_COUNT)
+        if not low <= value <= high:
+            raise ValueError(f"{name} must be a whole number from {low} to {high}, got {value}")
+        return
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    unit = name in AT_MOST_ONE
+    if not math.isfinite(value) or value <= 0 or (unit and value > 1):
+        accepted = "a number in (0, 1]" if unit else "a finite number > 0"
+        raise ValueError(f"{name} must be {accepted}, got {value}")
+
+
+def config_differences(saved: TrainConfig, wanted: TrainConfig) -> list[str]:
+    """The settings in which two configs differ, as `name saved -> wanted`."""
+    return [
+        f"{f.name} {getattr(saved, f.name)!s} -> {getattr(wanted, f.name)!s}"
+        for f in fields(TrainConfig)
+        if getattr(saved, f.name) != getattr(wanted, f.name)
+    ]
+
+
 def validate(config: TrainConfig) -> None:
     """Raise ValueError naming the bad value and what is accepted."""
-    canonical_task(config.task)
-    if canonical_task(config.task)[0] == "block" and config.backbone != "pebble":
+    for f in fields(config):
+        if f.type in ("int", "float"):
+            check_setting(f.name, getattr(config, f.name))
+    suite = canonical_task(config.task)[0]
+    if suite == "block" and config.backbone != "pebble":
         raise ValueError(
             f"backbone '{config.backbone}' needs SAC's actor; block:place learns with DQN "
             "and supports backbone pebble"
         )
-    check_path(config.path, config.precision, discrete=canonical_task(config.task)[0] == "block")
+    check_path(config.path, config.precision, discrete=suite == "block")
     if not config.reward.asks:
         _check_baseline(config)
     elif config.teacher_spec.kind == "human" and not config.record_states:
@@ -255,21 +298,23 @@ def validate(config: TrainConfig) -> None:
             "teacher 'human' answers on the labelling page: use `seqrank label online` "
             "(it also sets record_states 1, which the clips need)"
         )
-    positive = [f.name for f in fields(config) if f.type in ("int", "float")]
-    for name in positive:
-        if name in ("seed", "unsup_steps", "updates_after_reset", "record_states"):
-            continue
-        if getattr(config, name) <= 0:
-            raise ValueError(f"{name} must be positive, got {getattr(config, name)}")
-    if config.record_states not in (0, 1):
-        raise ValueError(f"record_states must be 0 or 1, got {config.record_states}")
+    pretrains = config.reward is not RewardSignal.TRUE and config.unsup_steps > 0
+    if pretrains and config.knn_k >= config.seed_steps:
+        raise ValueError(
+            f"knn_k {config.knn_k} must be smaller than seed_steps {config.seed_steps}: "
+            "pre-training measures each state's distance to its k-th nearest stored state"
+        )
     if config.reward_batch > config.max_feedback:
         raise ValueError(
             f"reward_batch {config.reward_batch} exceeds max_feedback {config.max_feedback}: "
             "a session cannot ask more questions than the whole budget"
         )
-    if not config.reward.asks:
-        return  # no sessions: the feedback budget does not apply
+    if config.reward.asks:
+        _check_budget(config)
+
+
+def _check_budget(config: TrainConfig) -> None:
+    """Every session of the feedback budget falls within the run's steps."""
     last_session = config.first_session_step + (config.sessions - 1) * config.feedback_frequency
     if last_session >= config.steps:
         raise ValueError(

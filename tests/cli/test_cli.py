@@ -106,18 +106,18 @@ def test_simulate_json_on_stdout(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["theory", "--m", "1"], "argument --m: 1 is too small; it must be >= 2"),
+        (["theory", "--m", "1"], "argument --m: 1 is out of range; accepted: 2 to 10000"),
         (["theory", "--m", "ten"], "'ten' is not a whole number"),
         (["theory", "--enumerate-max", "12"], "--enumerate-max 12 is too large"),
         (["theory", "--delta", "1.5"], "1.5 must lie strictly between 0 and 1"),
         (["theory", "--format", "xml"], "invalid choice: 'xml'"),
-        (["simulate", "--questions", "0"], "0 is too small; it must be >= 1"),
+        (["simulate", "--questions", "0"], "0 is out of range; accepted: 1 to 10000"),
         (
             ["simulate", "--schemes", "sequential,tree"],
             "unknown scheme 'tree'; accepted: pairwise, sequential, root, ranked",
         ),
         (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
-        (["simulate", "--sessions", "1"], "1 is too small; it must be >= 2"),
+        (["simulate", "--sessions", "1"], "1 is out of range; accepted: 2 to 1000000"),
         (["fly"], "invalid choice: 'fly'"),
     ],
 )

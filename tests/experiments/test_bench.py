@@ -86,11 +86,11 @@ def test_projection_adds_steps_sessions_and_evaluations():
     ("args", "message"),
     [
         (["--precisions", "fp16"], "unknown precision 'fp16'; accepted: fp32, tf32, bf16"),
-        (["--loop-steps", "50"], "--loop-steps 50 is too short"),
+        (["--loop-steps", "50"], "--loop-steps: 50 is out of range; accepted: 300 to"),
         (["--task", "block:place"], "learns with DQN"),
         (["--set", "hidden"], "expected FIELD=VALUE"),
         (["--set", "hidden=big"], "'big' is not a int"),
-        (["--repeats", "0"], "--repeats must be at least 1"),
+        (["--repeats", "0"], "--repeats: 0 is out of range; accepted: 1 to 1000"),
     ],
 )
 def test_bad_bench_options_are_named(args, message, capsys, tmp_path):

@@ -46,11 +46,21 @@ def test_stratified_bootstrap_resamples_within_tasks():
     assert low < iqm(spread["a"]) < high and low > 2.0 and high < 7.0
 
 
-def fake_run(directory, task, scheme, seed, returns, success=None, finished=True, reward="learned"):
+def fake_run(
+    directory,
+    task,
+    scheme,
+    seed,
+    returns,
+    success=None,
+    finished=True,
+    reward="learned",
+    **settings,
+):
     directory.mkdir(parents=True)
     config = {"task": task, "scheme": scheme, "backbone": "pebble", "teacher": "oracle"}
     config["reward"] = reward
-    config.update(seed=seed, steps=1000 * len(returns), scale="small")
+    config.update(seed=seed, steps=2000, scale="small", **settings)
     (directory / "config.json").write_text(json.dumps(config))
     rows = []
     for k, value in enumerate(returns):
@@ -160,3 +170,25 @@ def test_the_true_reward_agent_is_a_column_a_reference_and_the_unit_of_relative_
     assert header.endswith("| no-feedback | true-reward |")  # columns of the main table
     csv_text = (tmp_path / "r" / "report.csv").read_text()
     assert csv_text.splitlines()[0].endswith("relative,relative_low,relative_high")
+
+
+def test_runs_of_one_method_with_other_settings_are_reported_apart(tmp_path, capsys):
+    for seed, (feedback, value) in enumerate([(100, 300.0), (100, 320.0), (200, 500.0)]):
+        path = tmp_path / f"root_{seed}"
+        fake_run(path, "walker_walk", "root", seed, [100.0, value], max_feedback=feedback)
+    # settings that do not change what a run learns (device, seed) never split a cell
+    fake_run(tmp_path / "pairwise_0", "walker_walk", "pairwise", 0, [1.0, 2.0], device="cpu")
+    fake_run(tmp_path / "pairwise_1", "walker_walk", "pairwise", 1, [1.0, 4.0], device="cuda")
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["methods"] == ["pairwise", "root/max_feedback=100", "root/max_feedback=200"]
+    cells = {c["method"]: c for c in report["table"]}
+    assert cells["root/max_feedback=100"]["mean"] == pytest.approx(310.0)
+    assert cells["root/max_feedback=200"]["n"] == 1 and cells["pairwise"]["n"] == 2
+    note = (
+        "walker_walk: root runs differ in max_feedback; reported apart as "
+        "root/max_feedback=100, root/max_feedback=200"
+    )
+    assert report["notes"] == [note]
+    assert f"Note: {note}." in (tmp_path / "r" / "report.md").read_text()
+    assert f"note: {note}" in capsys.readouterr().err

@@ -131,7 +131,7 @@ def test_baselines_add_one_run_per_task_variant_and_seed():
         ),
         (
             {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"max_feedback": 0}},
-            "max_feedback must be positive",
+            "max_feedback must be a whole number from 1 to 2147483647, got 0",
         ),
         (
             {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"precision": "bf16"}},
@@ -254,7 +254,8 @@ def test_a_killed_sweep_command_resumes_without_redoing_finished_runs(tmp_path):
     spec.write_text(BLOCK_SWEEP.format(out=out))
     command = [sys.executable, "-m", "seqrank", "sweep", str(spec), "--workers", "1"]
     listed = subprocess.run([*command, "--dry-run"], capture_output=True, text=True, check=True)
-    names = listed.stdout.split()
+    names = [line.split()[0] for line in listed.stdout.splitlines()]
+    assert all(line.endswith("(new)") for line in listed.stdout.splitlines())
     assert names == [
         "block-place/pairwise_pebble_oracle_seed0",
         "block-place/root_pebble_oracle_seed0",
@@ -289,4 +290,73 @@ def test_sweep_command_rejects_bad_input(tmp_path, capsys):
     assert main(["sweep", str(tmp_path / "none.toml")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert main(["sweep", str(tmp_path / "x.toml"), "--workers", "0"]) == 2
-    assert "--workers 0" in capsys.readouterr().err
+    assert "argument --workers: 0 is out of range" in capsys.readouterr().err
+
+
+class RecordingBackend:
+    """Runs nothing: records what the sweep submits and reports each run trained."""
+
+    def __init__(self):
+        self.submitted, self.pending = [], []
+
+    def submit(self, run, path):
+        self.submitted.append(run.name)
+        self.pending.append(run.name)
+        return run.name
+
+    def done(self):
+        handle = self.pending.pop(0)
+        yield handle, {"status": "trained", "summary": {"final_eval_return": 1.0}}, None
+
+    def close(self):
+        pass
+
+
+def test_a_changed_sweep_file_names_the_runs_it_changed_and_reruns_them_when_asked(
+    tmp_path, monkeypatch, capsys
+):
+    from dataclasses import replace
+
+    from seqrank.cli import main
+    from seqrank.dirs import DirLock
+    from seqrank.training.runs import RunDir
+
+    overrides = "\n".join(f"{key} = {value}" for key, value in TINY.items())
+    spec = tmp_path / "grid.toml"
+    spec.write_text(
+        f'out = "{tmp_path / "out"}"\ndevice = "cpu"\ntasks = ["dmc:cartpole_swingup"]\n'
+        f'schemes = ["pairwise", "root"]\n[overrides]\n{overrides}\n'
+    )
+    sweep = load_sweep(spec)
+    changed, same = sweep.runs  # finished runs: one made before the file changed
+    for planned, config in (
+        (changed, replace(changed.config, max_feedback=10)),
+        (same, same.config),
+    ):
+        run = RunDir.create(sweep.out / "runs" / planned.name, config, "cpu")
+        run.write_summary({"final_eval_return": 0.0})
+        run.release()
+    assert main(["sweep", str(spec)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"1 runs in {sweep.out / 'runs'} were made with other settings than {spec}" in err
+    assert f"{changed.name} (max_feedback 10 -> 20)" in err and "--rerun-changed" in err
+
+    assert main(["sweep", str(spec), "--dry-run"]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert listed == [
+        f"{changed.name}  (changed: max_feedback 10 -> 20)",
+        f"{same.name}  (finished)",
+    ]
+
+    with DirLock(sweep.out, "sweep folder"):  # another sweep of this folder is running
+        assert main(["sweep", str(spec), "--rerun-changed"]) == 2
+        assert f"sweep folder {sweep.out} is in use" in capsys.readouterr().err
+
+    backend = RecordingBackend()
+    monkeypatch.setattr("seqrank.cli.sweep._backend", lambda args: backend)
+    assert main(["sweep", str(spec), "--rerun-changed"]) == 0
+    assert "1 changed runs moved to" in capsys.readouterr().err
+    assert backend.submitted == [changed.name, same.name]
+    assert not (sweep.out / "runs" / changed.name).exists()
+    (moved,) = (sweep.out / "replaced").glob(f"*/{changed.name}")
+    assert json.loads((moved / "config.json").read_text())["max_feedback"] == 10

@@ -51,7 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (2), --help or --version (0): a code, no raise
+        return stop.code if isinstance(stop.code, int) else 0
     args.command_line = list(sys.argv[1:] if argv is None else argv)
     # Piped output (files, CI logs) gets room for the wide tables instead of rich's 80.
     out = Console(soft_wrap=False, width=None if sys.stdout.isatty() else 150)

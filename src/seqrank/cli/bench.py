@@ -13,7 +13,7 @@ from typing import Any
 
 from rich.console import Console
 
-from seqrank.cli.options import field_type, split_names
+from seqrank.cli.options import field_type, int_between, split_names
 from seqrank.config import PRECISIONS, SCALES, TrainConfig
 from seqrank.console_tables import progress_bar
 from seqrank.errors import UsageError
@@ -40,10 +40,21 @@ def add_parser(commands: Any) -> None:
         default="auto",
         help="network and batch sizes: paper on CUDA, small on CPU (auto)",
     )
-    bench.add_argument("--repeats", type=int, default=3, help="interleaved rounds (3)")
-    bench.add_argument("--updates", type=int, default=200, help="SAC updates timed per round")
-    bench.add_argument("--reward-epochs", type=int, default=5, help="reward epochs per round")
-    bench.add_argument("--loop-steps", type=int, default=2000, help="loop steps per round")
+    bench.add_argument(
+        "--repeats", type=int_between(1, 1000), default=3, help="interleaved rounds (3)"
+    )
+    bench.add_argument(
+        "--updates", type=int_between(1, 10**6), default=200, help="SAC updates timed per round"
+    )
+    bench.add_argument(
+        "--reward-epochs", type=int_between(1, 10**4), default=5, help="reward epochs per round"
+    )
+    bench.add_argument(
+        "--loop-steps",
+        type=int_between(300, 10**7, "a round spans warm-up and feedback"),
+        default=2000,
+        help="loop steps per round",
+    )
     bench.add_argument(
         "--precisions",
         help="fast-path precisions, comma-separated "
@@ -66,26 +77,37 @@ def add_parser(commands: Any) -> None:
         type=Path,
         help="output path without suffix (default: seqrank-out/bench/bench-<device>)",
     )
+    bench.add_argument(
+        "--dry-run", action="store_true", help="check the options, print the plan, time nothing"
+    )
     bench.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.bench.report import format_markdown
     from seqrank.bench.suite import BenchPlan, run_bench
+    from seqrank.dirs import check_file
     from seqrank.training.runtime import resolve_device
 
-    for name in ("repeats", "updates", "reward_epochs"):
-        if getattr(args, name) < 1:
-            raise UsageError(f"--{name.replace('_', '-')} must be at least 1")
-    if args.loop_steps < 300:
-        raise UsageError(f"--loop-steps {args.loop_steps} is too short; it must be >= 300")
     try:
         device = resolve_device(args.device)
+        path = args.out or Path("seqrank-out/bench") / f"bench-{device.type}"
+        for suffix in (".json", ".md"):
+            check_file(path.with_suffix(suffix), "--out")
         precisions = _precisions(args.precisions, device.type)
         overrides = parse_overrides(args.set)
         plan = BenchPlan.build(args.task, args.scale, device, precisions, overrides, args)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    if args.dry_run:
+        variants = ", ".join(v.name for v in plan.variants)
+        err.print(
+            f"options valid: {plan.config.task} on {device}, {variants}; "
+            f"{plan.total_measurements} measurements, output {path} (dry run)",
+            highlight=False,
+            soft_wrap=True,
+        )
+        return 0
     with progress_bar(err) as bar:
         task = bar.add_task("bench", total=plan.total_measurements)
         result = run_bench(
@@ -93,7 +115,6 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         )
     result["command"] = "seqrank " + shlex.join(args.command_line)
     result["host"] = {"machine": platform.machine(), "cpus": os.cpu_count()}
-    path = args.out or Path("seqrank-out/bench") / f"bench-{device.type}"
     path.parent.mkdir(parents=True, exist_ok=True)
     markdown = format_markdown(result)
     path.with_suffix(".json").write_text(json.dumps(result, indent=2) + "\n")

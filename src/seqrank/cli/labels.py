@@ -25,19 +25,76 @@ def add_parser(commands: Any) -> None:
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.labelling.db import DB_NAME, LabelDB
-    from seqrank.labelling.jsonl import export_file, import_file
-
-    db_path = args.directory / DB_NAME
     try:
         if args.action == "export":
-            if not db_path.exists():
-                raise ValueError(f"{args.directory} holds no {DB_NAME}")
-            count = export_file(LabelDB(db_path), args.output)
-            out.print(f"{count} answers written to {args.output}")
+            count, source = _export(args.directory, args.output)
+            out.print(f"{count} answers of {source} written to {args.output}", highlight=False)
         else:
-            count = import_file(LabelDB(db_path), args.file)
-            out.print(f"{count} answers added to {db_path}")
-    except ValueError as problem:
+            count, db_path = _import(args.file, args.directory)
+            out.print(f"{count} answers added to {db_path}", highlight=False)
+    except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
     return 0
+
+
+def _export(directory: Path, output: Path) -> tuple[int, str]:
+    """A labelling database's answers, or a run's from its checkpoint (scripted and
+    replayed teachers, which have no database)."""
+    from seqrank.dirs import check_file
+    from seqrank.labelling.db import DB_NAME, LabelDB
+    from seqrank.labelling.jsonl import export_file
+
+    check_file(output, "label file")
+    if (directory / DB_NAME).is_file():
+        return export_file(LabelDB(directory / DB_NAME), output), str(directory / DB_NAME)
+    if not (directory / "config.json").is_file():
+        raise ValueError(
+            f"{directory} holds no {DB_NAME} (a labelling directory) nor config.json "
+            "(a run directory)"
+        )
+    return _export_run(directory, output), f"run {directory}"
+
+
+def _export_run(directory: Path, output: Path) -> int:
+    import os
+
+    from seqrank.envs import make_env
+    from seqrank.feedback.label_file import store_lines
+    from seqrank.feedback.labels import LabelStore
+    from seqrank.training.runs import RunDir
+
+    run = RunDir.open(directory)
+    config = run.read_config()
+    state = run.load_checkpoint()
+    store = LabelStore()
+    if state is not None:
+        store.load_state_dict(state["labels"])
+    env = make_env(config.task, config.seed)
+    header = {
+        "task": config.task,
+        "obs_dim": env.obs_dim,
+        "act_dim": env.act_dim,
+        "segment_length": config.segment_length,
+    }
+    env.close()
+    lines = list(store_lines(store, header, "train", config.scheme.value, config.teacher))
+    output.parent.mkdir(parents=True, exist_ok=True)
+    partial = output.with_name(output.name + ".part")
+    partial.write_text("".join(line + "\n" for line in lines))
+    os.replace(partial, output)
+    return sum('"type": "answer"' in line for line in lines)
+
+
+def _import(file: Path, directory: Path) -> tuple[int, Path]:
+    from seqrank.feedback.label_file import read_label_file
+    from seqrank.labelling.db import DB_NAME, LabelDB
+    from seqrank.labelling.directory import take_directory
+    from seqrank.labelling.jsonl import import_file
+
+    read_label_file(file)  # a bad file is refused before anything is made
+    with take_directory(directory):
+        db = LabelDB(directory / DB_NAME)
+        try:
+            return import_file(db, file), directory / DB_NAME
+        finally:
+            db.close()

@@ -38,6 +38,45 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
+def int_between(low: int, high: int, what: str = "") -> Callable[[str], int]:
+    """A whole number in [low, high]; `what` says why the range is what it is."""
+
+    def parse(text: str) -> int:
+        value = _whole_number(text)
+        if not low <= value <= high:
+            why = f" ({what})" if what else ""
+            raise argparse.ArgumentTypeError(
+                f"{value} is out of range; accepted: {low} to {high}{why}"
+            )
+        return value
+
+    return parse
+
+
+def number_between(low: float, high: float) -> Callable[[str], float]:
+    """A finite number in [low, high]."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not low <= value <= high:  # also refuses nan
+            raise argparse.ArgumentTypeError(
+                f"{value} is out of range; accepted: {low:g} to {high:g}"
+            )
+        return value
+
+    return parse
+
+
+# a seed: what numpy, torch and the simulators accept; a TCP port (0: any free one); a
+# rendered frame's side (MuJoCo's offscreen framebuffer is 640 x 480)
+seed_number = int_between(0, 2**32 - 1)
+port_number = int_between(0, 65535, "0 picks a free port")
+frame_size = int_between(16, 480, "the simulators render at most 480 pixels a side")
+
+
 def positive(text: str) -> int:
     value = _whole_number(text)
     if value < 1:
@@ -115,7 +154,12 @@ def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None
         type=Path,
         metavar="RUN_DIR",
         default=argparse.SUPPRESS,
-        help="continue a killed run from its last checkpoint",
+        help="continue a stopped run from its last checkpoint",
+    )
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the settings and print them (or the state of --resume's run); write nothing",
     )
     for f in fields(TrainConfig):
         if f.name == "scale":

@@ -8,6 +8,7 @@ from typing import Any
 
 from rich.console import Console
 
+from seqrank.cli.options import int_between, seed_number
 from seqrank.errors import UsageError
 
 
@@ -20,22 +21,27 @@ def add_parser(commands: Any) -> None:
     )
     report.add_argument("runs_dir", type=Path)
     report.add_argument("--out", type=Path, help="(default: RUNS_DIR/report)")
-    report.add_argument("--bootstrap", type=int, default=2000, help="resamples (2000)")
-    report.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+    report.add_argument(
+        "--bootstrap", type=int_between(100, 1_000_000), default=2000, help="resamples (2000)"
+    )
+    report.add_argument("--seed", type=seed_number, default=0, help="bootstrap seed (0)")
     report.add_argument("--no-plots", action="store_true")
     report.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import check_folder
     from seqrank.report.report import build_report, format_markdown, write_report
 
-    if args.bootstrap < 100:
-        raise UsageError(f"--bootstrap {args.bootstrap}: use at least 100 resamples")
+    folder = args.out or args.runs_dir / "report"
     try:
         report = build_report(args.runs_dir, args.bootstrap, args.seed)
+        check_folder(folder, "report folder")
     except ValueError as problem:
         raise UsageError(str(problem)) from None
-    written = write_report(report, args.out or args.runs_dir / "report", not args.no_plots)
+    for note in report["notes"]:
+        err.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
+    written = write_report(report, folder, not args.no_plots)
     out.print(format_markdown(report), markup=False, highlight=False)
     err.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
     return 0

@@ -12,7 +12,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from seqrank.cli.options import int_at_least, names, positive
+from seqrank.cli.options import int_between, names, positive, seed_number
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
 
@@ -42,9 +42,11 @@ def add_parser(commands: Any) -> None:
     pool = actions.add_parser("pool", help="build a pool: a true-reward run's episodes + random")
     pool.add_argument("--task", default="walker_walk")
     pool.add_argument("--from-run", type=Path, help="take the episodes of this run directory")
-    pool.add_argument("--steps", type=positive, default=50_000, help="true-reward training steps")
-    pool.add_argument("--seed", type=int_at_least(0), default=0)
-    pool.add_argument("--random-episodes", type=int_at_least(0), default=5)
+    pool.add_argument(
+        "--steps", type=int_between(1, 10**8), default=50_000, help="true-reward training steps"
+    )
+    pool.add_argument("--seed", type=seed_number, default=0)
+    pool.add_argument("--random-episodes", type=int_between(0, 10_000), default=5)
     pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
     pool.set_defaults(handler=run_pool)
 
@@ -52,26 +54,28 @@ def add_parser(commands: Any) -> None:
     grid.add_argument("--pool", type=Path, action="append", required=True, help="repeatable")
     grid.add_argument("--schemes", type=names(SCHEMES, "scheme"), default=SCHEMES)
     grid.add_argument("--teachers", type=lambda t: t.split(","), default=["oracle"])
-    grid.add_argument("--seeds", type=positive, default=3, help="seeds 0..N-1 (3)")
+    grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     grid.add_argument("--budgets", type=_numbers, default=[25, 50, 100, 200])
     grid.add_argument("--session-questions", type=positive, default=25)
-    grid.add_argument("--heldout-segments", type=int_at_least(10), default=300)
-    grid.add_argument("--reward-epochs", type=positive, default=30)
-    grid.add_argument("--workers", type=positive, default=os.cpu_count() or 1)
+    grid.add_argument("--heldout-segments", type=int_between(10, 10**6), default=300)
+    grid.add_argument("--reward-epochs", type=int_between(1, 10_000), default=30)
+    grid.add_argument("--workers", type=int_between(1, 1024), default=os.cpu_count() or 1)
     grid.add_argument("--out", type=Path, default=Path("seqrank-out/reward-bench"))
     grid.set_defaults(handler=run_grid)
 
     score = actions.add_parser("score", help="score exported labels (JSONL) on a pool")
     score.add_argument("labels", type=Path, help="a label file from `seqrank labels export`")
     score.add_argument("--pool", type=Path, required=True, help="a pool of the same task")
-    score.add_argument("--seed", type=int_at_least(0), default=0)
+    score.add_argument("--seed", type=seed_number, default=0)
     score.set_defaults(handler=run_score)
 
 
 def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import check_file
     from seqrank.rewardbench.pool import pool_from_run, save_pool
 
     try:
+        check_file(args.out, "pool file")
         run_path = args.from_run or _train_for_pool(args, err)
         pool = pool_from_run(run_path, args.random_episodes, args.seed)
     except (ValueError, FileNotFoundError) as problem:
@@ -89,40 +93,45 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
 def _train_for_pool(args: argparse.Namespace, err: Console) -> Path:
     """A true-reward run that keeps every episode (in `<out>.run/`)."""
     from seqrank.config import resolve_config
-    from seqrank.training.runs import RunDir
+    from seqrank.training.launch import open_or_start
     from seqrank.training.trainer import Trainer
 
     folder = args.out.with_suffix(".run")
     settings = {"reward": "true", "steps": args.steps, "seed": args.seed, "device": "cpu"}
     config = resolve_config(args.task, "small", {**settings, "episodes_kept": args.steps})
-    if (folder / "summary.json").exists():
-        return folder
-    run = RunDir.open(folder) if (folder / "config.json").exists() else None
-    trainer = Trainer(config, run or RunDir.create(folder, config, "cpu"))
-    state = run.load_checkpoint() if run else None
-    if state is not None:
-        trainer.load_checkpoint(state)
-    err.print(f"training on the true reward for {args.steps:,} steps in {folder}")
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=err,
-    ) as progress:
-        bar = progress.add_task("pool run", total=args.steps, completed=trainer.counters.step)
-        trainer.progress = lambda step, live: progress.update(bar, completed=step)
-        trainer.train()
+    started = open_or_start(folder, config, "cpu", Trainer)
+    try:
+        if started.finished:
+            return folder
+        trainer = started.trainer
+        err.print(f"training on the true reward for {args.steps:,} steps in {folder}")
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=err,
+        ) as progress:
+            bar = progress.add_task("pool run", total=args.steps, completed=trainer.counters.step)
+            trainer.progress = lambda step, live: progress.update(bar, completed=step)
+            trainer.train()
+    finally:
+        started.run.release()
     return folder
 
 
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import check_folder
     from seqrank.feedback.teachers import parse_teacher
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import run_grid as grid
+    from seqrank.rewardbench.pool import load_pool
     from seqrank.rewardbench.summary import format_table, plot_task, summarise
 
     try:
+        for path in args.pool:
+            load_pool(path)  # each pool checked before anything is made
+        check_folder(args.out, "--out")
         for teacher in args.teachers:
             if parse_teacher(teacher).kind != "scripted":
                 raise ValueError(f"teacher {teacher!r}: the grid asks scripted teachers only")

@@ -10,7 +10,8 @@ from typing import Any
 from rich.console import Console
 
 from seqrank import console_tables
-from seqrank.cli.options import int_at_least, names
+from seqrank.cli.options import int_between, names, seed_number
+from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
 from seqrank.simulate import simulate
@@ -22,13 +23,13 @@ def add_parser(commands: Any) -> None:
     )
     sim.add_argument(
         "--questions",
-        type=int_at_least(1),
+        type=int_between(1, 10_000),
         default=50,
         help="questions per session, N (default: %(default)s)",
     )
     sim.add_argument(
         "--sessions",
-        type=int_at_least(2),
+        type=int_between(2, 1_000_000),
         default=200,
         help="sessions per scheme and teacher (default: %(default)s)",
     )
@@ -44,7 +45,7 @@ def add_parser(commands: Any) -> None:
         default=list(TEACHER_PRESETS),
         help=f"comma-separated, from: {', '.join(TEACHER_PRESETS)} (default: all)",
     )
-    sim.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    sim.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     sim.add_argument(
         "--out",
         type=Path,
@@ -62,6 +63,12 @@ def add_parser(commands: Any) -> None:
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import check_folder
+
+    try:
+        check_folder(args.out, "--out")
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
     with console_tables.progress_bar(err) as progress:
         task = progress.add_task("simulate", total=len(args.schemes) * len(args.teachers))
         results = simulate(

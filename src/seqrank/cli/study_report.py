@@ -23,10 +23,14 @@ def add_parser(commands: Any) -> None:
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import check_file
     from seqrank.labelling.study import format_report, study_report
 
     try:
         report = study_report(args.study_dir)
+        if args.json is not None:
+            check_file(args.json, "--json")
+        check_file(args.study_dir / "study-report.md", "study report")
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     text = format_report(report)

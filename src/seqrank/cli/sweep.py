@@ -10,6 +10,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from seqrank.cli.options import int_between, number_between
 from seqrank.errors import UsageError
 
 
@@ -26,41 +27,76 @@ def add_parser(commands: Any) -> None:
     sweep.add_argument("--engine", choices=("local", "ray"), default="local")
     sweep.add_argument(
         "--workers",
-        type=int,
+        type=int_between(1, 1024),
         default=os.cpu_count() or 1,
         help="runs at once (default: the machine's cores; one thread each)",
     )
     sweep.add_argument("--ray-address", help="an existing Ray cluster (default: start one here)")
-    sweep.add_argument("--cpus-per-run", type=float, default=1.0, help="Ray: CPUs per run (1)")
+    sweep.add_argument(
+        "--cpus-per-run", type=number_between(0.01, 1024), default=1.0, help="Ray: CPUs per run (1)"
+    )
     sweep.add_argument(
         "--gpus-per-run",
-        type=float,
+        type=number_between(0, 64),
         default=0.0,
         help="Ray: GPU fraction per run (0; 0.25 = 4 per GPU)",
     )
-    sweep.add_argument("--dry-run", action="store_true", help="list the runs and stop")
+    sweep.add_argument(
+        "--dry-run", action="store_true", help="list the runs and their state, and stop"
+    )
+    sweep.add_argument(
+        "--rerun-changed",
+        action="store_true",
+        help="rerun the runs whose saved settings differ from the sweep file's (their old "
+        "directories move to <out>/replaced/); without it such runs stop the sweep",
+    )
     sweep.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.dirs import DirLock, check_folder
+    from seqrank.sweeps.engines import changed_runs
     from seqrank.sweeps.spec import load_sweep
 
-    if args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: must be at least 1")
-    if args.cpus_per_run <= 0 or args.gpus_per_run < 0:
-        raise UsageError("--cpus-per-run must be > 0 and --gpus-per-run >= 0")
     try:
         sweep = load_sweep(args.spec)
+        check_folder(sweep.out, "sweep folder")
+        changed = dict(changed_runs(sweep))
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     err.print(
         f"sweep {sweep.name}: {len(sweep.runs)} runs in {sweep.out / 'runs'}", highlight=False
     )
     if args.dry_run:
-        for planned in sweep.runs:
-            out.print(planned.name, highlight=False)
+        _list_runs(sweep, changed, out)
         return 0
-    status = _run_with_progress(sweep, _backend(args), err)
+    if changed and not args.rerun_changed:
+        raise UsageError(_changed_message(sweep, changed, args.spec))
+    sweep.out.mkdir(parents=True, exist_ok=True)
+    try:
+        with DirLock(sweep.out, "sweep folder"):
+            return _run(sweep, list(changed), args, out, err)
+    except ValueError as problem:  # the folder in use, or a changed run being trained
+        raise UsageError(str(problem)) from None
+
+
+def _run(
+    sweep: Any, changed: list[str], args: argparse.Namespace, out: Console, err: Console
+) -> int:
+    from seqrank.sweeps.engines import set_aside
+
+    if changed:
+        folder = set_aside(sweep, changed)
+        err.print(f"{len(changed)} changed runs moved to {folder}; rerunning them", highlight=False)
+    try:
+        status = _run_with_progress(sweep, _backend(args), err)
+    except KeyboardInterrupt:
+        err.print(
+            "interrupted: runs stop at their next episode end with a checkpoint; rerun the "
+            "same command to continue",
+            highlight=False,
+        )
+        return 130
     failed = [r for r in status.runs.values() if r.state == "failed"]
     out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
     for failure in failed:
@@ -69,6 +105,31 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             highlight=False,
         )
     return 1 if failed else 0
+
+
+def _list_runs(sweep: Any, changed: dict[str, list[str]], out: Console) -> None:
+    """Each planned run and what a sweep would do with it."""
+    for planned in sweep.runs:
+        path = sweep.out / "runs" / planned.name
+        if planned.name in changed:
+            state = f"changed: {', '.join(changed[planned.name])}"
+        elif (path / "summary.json").is_file():
+            state = "finished"
+        elif (path / "config.json").is_file():
+            state = "started"
+        else:
+            state = "new"
+        out.print(f"{planned.name}  ({state})", highlight=False, soft_wrap=True)
+
+
+def _changed_message(sweep: Any, changed: dict[str, list[str]], spec: Path) -> str:
+    shown = [f"{name} ({', '.join(diff)})" for name, diff in list(changed.items())[:3]]
+    more = f"; and {len(changed) - 3} more" if len(changed) > 3 else ""
+    return (
+        f"{len(changed)} runs in {sweep.out / 'runs'} were made with other settings than "
+        f"{spec} gives now: {'; '.join(shown)}{more}; rerun them with --rerun-changed "
+        f"(their directories move to {sweep.out / 'replaced'}), or restore the sweep file"
+    )
 
 
 def _backend(args: argparse.Namespace) -> Any:

@@ -9,11 +9,12 @@ from typing import Any
 from rich.console import Console
 
 from seqrank import console_tables
-from seqrank.cli.options import int_at_least, probability
+from seqrank.cli.options import int_at_least, int_between, probability, seed_number
 from seqrank.errors import UsageError
 from seqrank.theory import DEFAULT_MS, PAPER_FIGURE13, compute_theory, disagreements
 
 ENUMERATION_LIMIT = 9  # 9! orderings through the real code take about a minute
+MAX_M, MAX_SESSIONS = 10_000, 10_000_000
 
 
 def add_parser(commands: Any) -> None:
@@ -23,14 +24,14 @@ def add_parser(commands: Any) -> None:
     theory.add_argument(
         "--m",
         nargs="+",
-        type=int_at_least(2),
+        type=int_between(2, MAX_M),
         default=list(DEFAULT_MS),
         metavar="M",
         help="segments per session (questions = M - 1); default: %(default)s",
     )
     theory.add_argument(
         "--sessions",
-        type=int_at_least(2),
+        type=int_between(2, MAX_SESSIONS),
         default=2000,
         help="simulated sessions per M and scheme (default: %(default)s)",
     )
@@ -47,7 +48,7 @@ def add_parser(commands: Any) -> None:
         default=0.03,
         help="failure probability of the Lemma 3/4 degree bounds (default: %(default)s)",
     )
-    theory.add_argument("--seed", type=int, default=0, help="simulation seed (default: 0)")
+    theory.add_argument("--seed", type=seed_number, default=0, help="simulation seed (default: 0)")
     theory.add_argument("--format", choices=("table", "json"), default="table")
     theory.set_defaults(handler=run)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,9 @@ from seqrank.training.runs import RunDir
 if TYPE_CHECKING:
     import torch
 
+    from seqrank.training.launch import Started
+    from seqrank.training.stopping import StopSignal
+
 
 def add_parser(commands: Any) -> None:
     train = commands.add_parser(
@@ -40,16 +44,57 @@ def add_parser(commands: Any) -> None:
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
+    """Ctrl-C or SIGTERM from here on stop the run at its next episode end, with a
+    checkpoint (before training starts: at once, the directory left to --resume)."""
     from seqrank.training.runtime import resolve_device
+    from seqrank.training.stopping import stop_on_signals
     from seqrank.training.trainer import Trainer
 
+    stopping = threading.Event()
+    with stop_on_signals(stopping.set, lambda text: _say(err, text)) as stop:
+        try:
+            started = prepare_run(args, err, Trainer, resolve_device)
+        except (ValueError, FileNotFoundError, FileExistsError) as problem:
+            raise UsageError(str(problem)) from None
+        except KeyboardInterrupt:
+            return stop.exit_code()
+        if started is None:
+            return 0  # --dry-run
+        try:
+            if started.finished:
+                say_finished(started, err)
+                return 0
+            started.trainer.stop_requested = stopping
+            return _train(started, out, err, args.quiet, stop)
+        finally:
+            started.run.release()
+
+
+def _train(started: Started, out: Console, err: Console, quiet: bool, stop: StopSignal) -> int:
+    from seqrank.training.loop import RunStopped
+
+    trainer, run = started.trainer, started.run
+    again = f"continue with: seqrank train --resume {run.path}"
     try:
-        trainer, config, run_dir = prepare_run(args, err, Trainer, resolve_device)
-    except (ValueError, FileNotFoundError, FileExistsError) as problem:
-        raise UsageError(str(problem)) from None
-    summary = _train_with_progress(trainer, config, err, args.quiet)
-    _print_summary(out, summary, run_dir)
+        summary = _train_with_progress(trainer, started.config, err, quiet)
+    except RunStopped as stopped:
+        _say(err, f"stopped at step {stopped.step:,}, checkpoint saved; {again}")
+        return stop.exit_code()
+    except KeyboardInterrupt:
+        kept = trainer.counters.last_checkpoint_step
+        _say(err, f"stopped at once; the checkpoint of step {kept:,} is kept; {again}")
+        return stop.exit_code()
+    _print_summary(out, summary, run)
     return 0
+
+
+def _say(err: Console, text: str) -> None:
+    err.print(text, highlight=False, markup=False, soft_wrap=True)
+
+
+def say_finished(started: Started, err: Console) -> None:
+    path, steps = started.run.path, started.config.steps
+    _say(err, f"run {path} is finished ({steps:,} steps, summary.json); nothing to resume")
 
 
 @dataclass(frozen=True)
@@ -71,39 +116,70 @@ def new_run(args: argparse.Namespace, resolve_device: Any) -> NewRun:
 
 def prepare_run(
     args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any
-) -> Any:
-    """Build the trainer of a new or resumed run; bad input raises ValueError."""
+) -> Started | None:
+    """Start a new run or continue one (None after --dry-run); bad input raises ValueError.
+    The run directory stays locked by this process until `Started.run.release()`."""
+    from seqrank.training.launch import continue_run, start_new
+
     if hasattr(args, "resume"):
-        return _resume_run(args, err, trainer_cls)
+        _refuse_new_settings(args)
+        if args.dry_run:
+            _dry_resume(args.resume, err)
+            return None
+        started = continue_run(args.resume, trainer_cls)
+        if not started.finished:
+            err.print(f"resuming {started.run.path} at step {started.trainer.counters.step}")
+        return started
     new = new_run(args, resolve_device)
     config = resolve_config(new.task, new.scale, new.given)
     from seqrank.training.runtime import config_runtime
 
     config_runtime(config, new.device)  # before anything is written
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
+    RunDir.check_new(path)
     wandb = getattr(args, "wandb", None)
     if wandb is not None:
         _check_wandb(wandb)
-    run = RunDir.create(path, config, str(new.device), wandb)
-    trainer = trainer_cls(config, run)
-    err.print(f"run directory: {run.path} ({new.scale} preset, device {new.device})")
-    return trainer, config, run
+    if args.dry_run:
+        if config.teacher_spec.kind == "replay":
+            from seqrank.feedback.sources import make_source
+
+            make_source(config.teacher)  # the label file is read and checked
+        _describe(config, path, new, err)
+        return None
+    started = start_new(path, config, str(new.device), trainer_cls, wandb)
+    err.print(f"run directory: {path} ({new.scale} preset, device {new.device})")
+    return started
 
 
-def _resume_run(args: argparse.Namespace, err: Console, trainer_cls: Any) -> Any:
+def _refuse_new_settings(args: argparse.Namespace) -> None:
     given = given_settings(args)
     if given or hasattr(args, "out") or hasattr(args, "scale") or hasattr(args, "wandb"):
         changed = ", ".join(f"--{k.replace('_', '-')}" for k in given) or "--out/--scale/--wandb"
         raise ValueError(f"--resume continues a run with its saved settings; drop {changed}")
-    run = RunDir.open(args.resume)
-    config = run.read_config()
-    from seqrank.training.trainer import open_trainer
 
-    trainer, state = open_trainer(trainer_cls, config, run)
-    if state is None:  # killed before its first checkpoint: start over, dropping what it logged
-        run.truncate_metrics(0)
-    err.print(f"resuming {run.path} at step {trainer.counters.step}")
-    return trainer, config, run
+
+def _dry_resume(path: Path, err: Console) -> None:
+    run = RunDir.open(path)
+    config = run.read_config()
+    if run.finished:
+        state = "finished: nothing to resume"
+    else:
+        checkpoint = run.load_checkpoint()
+        step = 0 if checkpoint is None else checkpoint["counters"]["step"]
+        state = f"resumes at step {step:,} of {config.steps:,}"
+    _say(err, f"{path}: {config.task}, settings valid; {state} (dry run)")
+
+
+def _describe(config: TrainConfig, path: Path, new: NewRun, err: Console) -> None:
+    """What --dry-run prints: the resolved settings and where the run would go."""
+    _say(
+        err,
+        f"settings valid ({new.scale} preset, device {new.device}); run directory would be "
+        f"{path} (dry run: nothing written)",
+    )
+    for name, value in config.as_dict().items():
+        _say(err, f"  {name} = {value}")
 
 
 def _check_wandb(project: str) -> None:

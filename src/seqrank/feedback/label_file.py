@@ -126,3 +126,74 @@ def parse_lines(lines: Iterable[str], source: str = "<labels>") -> LabelFile:
     if header is None:
         raise ValueError(f"{source}: empty label file (no header)")
     return LabelFile(header, segments, answers, surveys)
+
+
+def store_lines(
+    store: Any, header: dict[str, Any], run: str, scheme: str, annotator: str
+) -> Iterable[str]:
+    """A run's label store (`feedback.labels.LabelStore`) in this format: its segments and
+    every asked question in order. A run saved before the store kept its questions gives
+    its asked pairs, without skips and roles, and per-step rewards spread evenly over each
+    segment (their sum, the segment's true return, is exact). `header` holds task,
+    obs_dim, act_dim and segment_length."""
+    asked = list(store.asked) or [
+        (s, scheme, a, b, {1.0: "first", 0.0: "second"}.get(label, "equal"), False)
+        for s, a, b, label, inferred in zip(
+            store.session, store.first, store.second, store.labels, store.inferred, strict=True
+        )
+        if not inferred
+    ]
+    yield json.dumps({"type": "header", "format": FORMAT, "version": VERSION, **header})
+    session_of: dict[int, int] = {}
+    for session, _, first, second, _, _ in asked:
+        session_of.setdefault(first, session)
+        session_of.setdefault(second, session)
+    start: dict[int, int] = {}
+    for index, session in session_of.items():
+        start[session] = min(start.get(session, index), index)
+    names = {i: f"{run}/{s}/{i - start[s]}" for i, s in session_of.items()}
+    for index in sorted(names):
+        states = store.segment_states[index]
+        yield json.dumps(
+            {
+                "type": "segment",
+                "id": names[index],
+                "run": run,
+                "session": session_of[index],
+                "features": np.asarray(store.segments[index]).tolist(),
+                "rewards": _rewards(store, index).tolist(),
+                "states": None if states is None else np.asarray(states).tolist(),
+                "context": store.segment_contexts[index],
+            }
+        )
+    counters: dict[int, int] = {}
+    for session, scheme, first, second, answer, defended in asked:
+        counters[session] = counters.get(session, -1) + 1
+        yield json.dumps(
+            {
+                "type": "answer",
+                "run": run,
+                "scheme": scheme,
+                "session": session,
+                "index": counters[session],
+                "first": names[first],
+                "second": names[second],
+                "defender": names[first] if defended else None,
+                "challenger": names[second] if defended else None,
+                "left": names[first],
+                "right": names[second],
+                "answer": answer,
+                "timed_out": False,
+                "latency_ms": 0.0,
+                "annotator": annotator,
+                "answered_at": None,
+            }
+        )
+
+
+def _rewards(store: Any, index: int) -> np.ndarray:
+    kept = getattr(store, "segment_rewards", [])
+    if index < len(kept):
+        return np.asarray(kept[index], np.float64)
+    steps = len(store.segments[index])
+    return np.full(steps, store.segment_returns[index] / steps)

@@ -9,12 +9,14 @@ import torch
 
 from seqrank.episodes import Segments
 from seqrank.feedback.closure import Augmentation
+from seqrank.feedback.schemes import SessionRecord
 
 
 class LabelStore:
     def __init__(self) -> None:
         self.segments: list[np.ndarray] = []  # (H, obs+act) each
         self.segment_returns: list[float] = []
+        self.segment_rewards: list[np.ndarray] = []  # true per-step rewards, for the export
         self.first: list[int] = []
         self.second: list[int] = []
         self.labels: list[float] = []
@@ -23,6 +25,9 @@ class LabelStore:
         # provenance, to re-render a segment: physics states (when recorded) and task index
         self.segment_states: list[np.ndarray | None] = []
         self.segment_contexts: list[int | None] = []
+        # every asked question in order, skips included, for the label export:
+        # (session, scheme, first, second, answer, first is the defender); ids index segments
+        self.asked: list[tuple[int, str, int, int, str, bool]] = []
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -34,12 +39,15 @@ class LabelStore:
         used: tuple[int, ...],
         augmentation: Augmentation,
         session: int,
+        record: SessionRecord | None = None,
     ) -> None:
-        """Store the session's segments (pool ids `used`) and its labelled pairs."""
+        """Store the session's segments (pool ids `used`), its labelled pairs and (given
+        the session's record) its questions and answers."""
         offset = {pool_id: len(self.segments) + k for k, pool_id in enumerate(used)}
         for pool_id in used:
             self.segments.append(segments.features[pool_id])
             self.segment_returns.append(float(true_returns[pool_id]))
+            self.segment_rewards.append(np.asarray(segments.rewards[pool_id], np.float32))
             self.segment_states.append(segments.states[pool_id])
             self.segment_contexts.append(segments.contexts[pool_id])
         for pair in augmentation.pairs:
@@ -48,6 +56,13 @@ class LabelStore:
             self.labels.append(pair.label)
             self.inferred.append(pair.inferred)
             self.session.append(session)
+        if record is None:
+            return
+        for asked in record.answers:
+            question = asked.question
+            first, second = offset[question.first], offset[question.second]
+            row = (session, record.scheme, first, second, asked.answer.value)
+            self.asked.append((*row, question.first_is_defender))
 
     def tensors(
         self, device: torch.device, last: int | None = None

@@ -125,5 +125,5 @@ def store_session(
     """Augment the answers by transitivity and store asked and inferred pairs."""
     true_returns = segments.rewards.sum(axis=1)
     augmentation = augment(record.answers, true_returns.tolist())
-    labels.add_session(segments, true_returns, record.segments, augmentation, session)
+    labels.add_session(segments, true_returns, record.segments, augmentation, session, record)
     return SessionOutcome(augmentation.stats, len(record.segments))

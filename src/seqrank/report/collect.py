@@ -7,7 +7,7 @@ unfinished run reports its last evaluation and is marked partial.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ class RunResult:
     final_success: float | None  # percent
     curve: tuple[tuple[int, float, float], ...]  # (step, return, success %)
     feedback: tuple[dict[str, Any], ...]
+    settings: dict[str, Any] = field(default_factory=dict, compare=False)  # its config.json
 
     @property
     def baseline(self) -> bool:
@@ -96,6 +97,7 @@ def collect_runs(folder: Path) -> list[RunResult]:
                 float(last.get("eval_success_rate", 0.0)) if last else None,
                 curve,
                 tuple(r for r in rows if r.get("kind") == "feedback"),
+                config,
             )
         )
     if not results:

@@ -1,9 +1,11 @@
 """`seqrank report RUNS_DIR`: paper-style tables, robust statistics and plots.
 
 Methods are schemes; when a folder mixes backbones, teachers or scales they join the method
-name (`root/mrn/mistake/small`). Baseline runs (`--reward true` or `none`) are the methods
-`true-reward` and `no-feedback`; with a true-reward run in the folder, every curve shows it
-as a reference line and every method's score is also given relative to it. Outputs in
+name (`root/mrn/mistake/small`), and runs of one task and method that differ in any other
+setting are kept apart, with the settings in their name and a note (`report/groups.py`).
+Baseline runs (`--reward true` or `none`) are the methods `true-reward` and `no-feedback`;
+with a true-reward run in the folder, every curve shows it as a reference line and every
+method's score is also given relative to it. Outputs in
 `--out` (default RUNS_DIR/report): `report.md`, `report.csv` (one row per task and method),
 `report.json`, `curves_<task>.png` and `feedback_<task>.png`.
 """
@@ -22,6 +24,7 @@ import numpy as np
 
 from seqrank.choices import RewardSignal
 from seqrank.report.collect import RunResult, collect_runs
+from seqrank.report.groups import split_by_settings
 from seqrank.report.stats import (
     Scores,
     iqm,
@@ -80,7 +83,7 @@ def reference_method(methods: list[str]) -> str | None:
 
 def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[str, Any]:
     runs = collect_runs(folder)
-    names = method_names(runs)
+    names, notes = split_by_settings(runs, method_names(runs))
     rng = np.random.default_rng(seed)
     tasks = sorted({r.task for r in runs})
     methods = _order(set(names.values()))
@@ -111,6 +114,7 @@ def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[s
         "aggregate_iqm": _aggregate(normalized, methods, repetitions, rng),
         "probability_of_improvement": _improvement(normalized, methods, repetitions, rng),
         "bootstrap": {"repetitions": repetitions, "seed": seed},
+        "notes": notes,
         "_runs": runs,
         "_names": names,
     }
@@ -220,6 +224,7 @@ def format_markdown(report: dict[str, Any]) -> str:
         f"{report['runs']} runs ({report['finished']} finished; partial runs count with their "
         "last evaluation). Return on DMControl, success rate (%) on Meta-World and block:place;",
         "mean ± sample std over seeds (n), as in the paper's Tables 5-7.",
+        *(f"Note: {note}." for note in report.get("notes", [])),
         "",
         "| task | " + " | ".join(methods) + " |",
         "|---|" + "---|" * len(methods),

@@ -63,8 +63,8 @@ def run_grid(
     progress: Progress | None = None,
 ) -> list[dict[str, Any]]:
     """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
-    _check_settings(out, settings)
     tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
+    _check_settings(out, settings)
     rows_path = out / "rows.jsonl"
     rows = read_rows(rows_path)
     rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line

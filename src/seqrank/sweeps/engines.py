@@ -26,34 +26,57 @@ ENGINES = ("local", "ray")
 def train_run(
     path: str, config: dict[str, Any], threads: int, wandb: str | None = None
 ) -> dict[str, Any]:
-    """Train (or finish, or skip) one run; runs inside a worker process."""
+    """Train (or finish, or skip) one run; runs inside a worker process. The run's directory
+    is locked while it trains; Ctrl-C or SIGTERM stop it at its next episode end, with a
+    checkpoint."""
     import torch
 
     from seqrank.config import TrainConfig
-    from seqrank.training.runs import RunDir
-    from seqrank.training.trainer import Trainer, open_trainer
+    from seqrank.training.launch import open_or_start
+    from seqrank.training.stopping import stop_on_signals
+    from seqrank.training.trainer import Trainer
 
     torch.set_num_threads(threads)
-    directory = Path(path)
-    if (directory / "summary.json").exists():
-        return {
-            "status": "skipped",
-            "summary": json.loads((directory / "summary.json").read_text()),
-        }
     settings = TrainConfig(**config)
-    if (directory / "config.json").exists():
-        run = RunDir.open(directory)
-        if run.read_config() != settings:
-            raise ValueError(f"{directory} holds a run with other settings; move it away")
-        trainer, state = open_trainer(Trainer, settings, run)
-        if state is None:
-            run.truncate_metrics(0)
-        status = "resumed"
-    else:
-        run = RunDir.create(directory, settings, settings.device, wandb)
-        trainer = Trainer(settings, run)
-        status = "trained"
-    return {"status": status, "summary": trainer.train()}
+    started = open_or_start(Path(path), settings, settings.device, Trainer, wandb)
+    try:
+        if started.finished:
+            return {"status": "skipped", "summary": started.run.read_summary()}
+        with stop_on_signals(started.trainer.stop_requested.set, lambda text: None):
+            summary = started.trainer.train()
+        return {"status": "resumed" if started.resumed else "trained", "summary": summary}
+    finally:
+        started.run.release()
+
+
+def changed_runs(sweep: Sweep) -> list[tuple[str, list[str]]]:
+    """Runs whose directory holds a run of other settings than the sweep now plans, with
+    what differs (saved -> planned)."""
+    from seqrank.config import config_differences
+    from seqrank.training.runs import RunDir
+
+    changed = []
+    for planned in sweep.runs:
+        path = sweep.out / "runs" / planned.name
+        if (path / "config.json").is_file():
+            differences = config_differences(RunDir.open(path).read_config(), planned.config)
+            if differences:
+                changed.append((planned.name, differences))
+    return changed
+
+
+def set_aside(sweep: Sweep, names: list[str]) -> Path:
+    """Move the named runs' directories to `<out>/replaced/<time>/`, each while holding
+    its lock (a run that is training elsewhere is not moved); returns that folder."""
+    from seqrank.dirs import DirLock
+
+    folder = sweep.out / "replaced" / time.strftime("%Y%m%d-%H%M%S")
+    for name in names:
+        source, target = sweep.out / "runs" / name, folder / name
+        with DirLock(source, "run directory"):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            source.rename(target)
+    return folder
 
 
 @dataclass

@@ -11,6 +11,7 @@ submitted again on resume, so a resumed run still reproduces an uninterrupted on
 from __future__ import annotations
 
 import multiprocessing
+import signal
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -40,6 +41,9 @@ def _start(task: str, seed: int, dims: tuple[int, int, int, int]) -> None:
     from seqrank.envs import make_env
 
     torch.set_num_threads(1)
+    # Ctrl-C reaches the whole process group: the trainer stops at its next episode end and
+    # still needs this process until then
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER["env"] = make_env(task, seed)
     _WORKER["actor"] = Actor(*dims)
 

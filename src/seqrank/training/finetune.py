@@ -64,9 +64,7 @@ def start_from(trainer: Trainer, state: dict[str, Any]) -> None:
     trainer.episodes.load_state_dict(state["episodes"])
 
 
-def play_episodes(
-    trainer: Trainer, random_share: tuple[float, ...], seed: int
-) -> list[Episode]:
+def play_episodes(trainer: Trainer, random_share: tuple[float, ...], seed: int) -> list[Episode]:
     """One episode per value: the current policy (stochastic), each action replaced by a
     uniform random one with that probability; physics states kept for the clips."""
     env, agent = trainer.env, trainer.agent

@@ -11,7 +11,8 @@ learned reward; the baselines of `RewardSignal` skip what they do not need),
   of the replay buffer; after the first session only, the critic reset; and the agent
   update of the backbone (PEBBLE: the agent's own; MRN: with a meta reward step);
 - evaluation every `eval_every` steps, a `train` row every 1 000 steps, and a checkpoint
-  at the end of an episode once `checkpoint_every` steps have passed (and at the last step).
+  at the end of an episode once `checkpoint_every` steps have passed (and at the last step;
+  when a stop is requested, at the next episode end, before `RunStopped` is raised).
 
 Every episode and evaluation episode is seeded from the run seed and its index, and all
 other randomness comes from one numpy and one torch generator that are checkpointed, so a
@@ -32,6 +33,15 @@ from seqrank.training.state import episode_seed
 
 if TYPE_CHECKING:
     from seqrank.training.trainer import Trainer
+
+
+class RunStopped(Exception):
+    """Training stopped on request (`Trainer.stop_requested`) at an episode end, after a
+    checkpoint of that step: the run continues from there with `--resume`."""
+
+    def __init__(self, step: int):
+        super().__init__(f"stopped at step {step}")
+        self.step = step
 
 
 def run_loop(t: Trainer) -> dict[str, Any]:
@@ -57,6 +67,10 @@ def run_loop(t: Trainer) -> dict[str, Any]:
             t.progress(c.step, metrics.live(c))
         if episode_over and c.step - c.last_checkpoint_step >= config.checkpoint_every:
             t.save_checkpoint()
+        if episode_over and c.step < config.steps and t.stop_requested.is_set():
+            if c.last_checkpoint_step != c.step:
+                t.save_checkpoint()
+            raise RunStopped(c.step)
     if c.last_checkpoint_step != c.step:  # a finished run always leaves its final policy
         t.save_checkpoint()
     summary = metrics.summary(config, c, t.run_dir.read_metrics())

@@ -5,8 +5,9 @@ meta.json        seed, device, package versions, git revision, command, start ti
 metrics.jsonl    one JSON object per line, each with `step` and `kind`
                  (`eval`, `feedback`, `train`); keys documented in the README
 checkpoint.pt    the latest checkpoint (written atomically at an episode end)
-summary.json     final numbers; returns.png the evaluation curve
+summary.json     final numbers (a run with it is finished); returns.png the evaluation curve
 events.out.tfevents.*  the same metrics for TensorBoard; wandb.json with `--wandb`
+.lock            held by the one process that trains it (`seqrank.dirs.DirLock`)
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from typing import Any
 import torch
 
 from seqrank.config import TrainConfig
+from seqrank.dirs import LOCK_NAME, DirLock, check_folder, missing_folders, remove_made
 from seqrank.training.sinks import MetricSink, TensorBoardSink, WandbSink
 
 PACKAGES = ("seqrank", "torch", "numpy", "mujoco", "dm-control", "metaworld", "gymnasium")
@@ -35,6 +37,8 @@ class RunDir:
         self.path = path
         self._sinks: list[MetricSink] | None = None  # opened at the first row
         self._purge_step: int | None = None
+        self._lock = DirLock(path, "run directory")
+        self._made: list[Path] = []  # folders `create` made, removed again by `discard`
 
     @property
     def wandb_project(self) -> str | None:
@@ -57,29 +61,74 @@ class RunDir:
     def create(
         cls, path: Path, config: TrainConfig, device: str, wandb: str | None = None
     ) -> RunDir:
-        """A new run directory; `wandb` names a W&B project that also gets the metrics
-        (kept in meta.json, so a resumed run logs there too)."""
-        if path.exists() and any(path.iterdir()):
-            raise FileExistsError(
-                f"run directory {path} is not empty; resume it with --resume {path} "
-                "or choose another --out"
-            )
+        """A new run directory, locked by this process; `wandb` names a W&B project that
+        also gets the metrics (kept in meta.json, so a resumed run logs there too)."""
+        path = Path(path)
+        cls.check_new(path)
+        made = missing_folders(path)
         path.mkdir(parents=True, exist_ok=True)
         run = cls(path)
+        run._made = made
+        try:
+            run.lock()
+        except ValueError:
+            remove_made(made)
+            raise
         _write_json(run.config_path, config.as_dict())
         _write_json(path / "meta.json", {**_meta(config, device), "wandb": wandb})
         run.metrics_path.touch()
         return run
 
+    @staticmethod
+    def check_new(path: Path) -> None:
+        """ValueError or FileExistsError unless a new run can be made at `path` (nothing
+        is written)."""
+        check_folder(path, "run directory")
+        if path.exists() and any(p.name != LOCK_NAME for p in path.iterdir()):
+            raise FileExistsError(
+                f"run directory {path} is not empty; resume it with --resume {path} "
+                "or choose another --out"
+            )
+
     @classmethod
     def open(cls, path: Path) -> RunDir:
-        run = cls(path)
+        run = cls(Path(path))
         if not run.config_path.is_file():
             raise FileNotFoundError(f"no run directory at {path} (config.json missing)")
         return run
 
+    def lock(self) -> None:
+        """Hold the directory for this process (DirectoryInUse when another holds it)."""
+        self._lock.acquire()
+
+    def release(self) -> None:
+        self._lock.release()
+
+    def discard(self) -> None:
+        """Undo `create` after a failed start: remove everything in the directory (it was
+        new or empty) and the folders it made, so the same command can run again."""
+        import shutil
+
+        self.close_sinks()
+        for child in self.path.iterdir():
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child, ignore_errors=True)
+            else:
+                child.unlink(missing_ok=True)
+        self.release()
+        remove_made(self._made)
+
+    @property
+    def finished(self) -> bool:
+        return (self.path / "summary.json").is_file()
+
     def read_config(self) -> TrainConfig:
-        values = json.loads(self.config_path.read_text())
+        try:
+            values = json.loads(self.config_path.read_text())
+        except json.JSONDecodeError:
+            raise ValueError(f"{self.config_path} is not a run's config (not JSON)") from None
+        if not isinstance(values, dict):
+            raise ValueError(f"{self.config_path} is not a run's config (not a JSON object)")
         known = {f.name for f in fields(TrainConfig)}
         return TrainConfig(**{k: v for k, v in values.items() if k in known})
 
@@ -126,7 +175,13 @@ class RunDir:
     def load_checkpoint(self) -> dict[str, Any] | None:
         if not self.checkpoint_path.exists():
             return None
-        state: dict[str, Any] = torch.load(self.checkpoint_path, weights_only=False)
+        try:
+            state: dict[str, Any] = torch.load(self.checkpoint_path, weights_only=False)
+        except Exception as error:  # a file that is not a checkpoint of ours
+            raise ValueError(
+                f"{self.checkpoint_path} is not a readable checkpoint ({type(error).__name__}); "
+                "move it away to start the run over"
+            ) from None
         return state
 
     def read_summary(self) -> dict[str, Any]:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import os
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -62,19 +64,15 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
         self.eval_env = make_env(config.task, config.seed)
-        # (a task with terminal states may end episodes sooner: its first session waits
-        # for the first complete episode instead)
-        if config.first_session_step < self.env.episode_length and not self.env.has_terminals:
-            raise ValueError(
-                f"the first feedback session (step {config.first_session_step}) comes before "
-                f"the first complete episode ({self.env.episode_length} steps); raise "
-                "--seed-steps or --unsup-steps"
-            )
+        _check_episode_fits(config, self.env.episode_length, self.env.has_terminals)
         self.runtime = runtime = resolve_runtime(
             config.device, config.path, config.precision, self.env.discrete
         )
         self.fast, device = runtime.fast, runtime.device
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
+        # the reference path keeps the buffer on the host and copies each batch over
+        storage = device if runtime.fast else torch.device("cpu")
+        _check_replay_fits(config.steps, obs_dim, act_dim, storage)
         self.agent = make_agent(config, self.env, runtime)
         self.reward_model = RewardModel(
             config.reward_ensemble,
@@ -84,8 +82,6 @@ class Trainer:
             config.reward_lr,
             device,
         )
-        # the reference path keeps the buffer on the host and copies each batch over
-        storage = device if runtime.fast else torch.device("cpu")
         train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
         self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
@@ -95,6 +91,8 @@ class Trainer:
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
         self.counters = Counters()
+        # set (by a signal handler, say) to stop at the next episode end with a checkpoint
+        self.stop_requested = threading.Event()
         self._assemble_phases(wait_for_feedback)
 
     def _assemble_phases(self, wait_for_feedback: bool) -> None:
@@ -185,6 +183,39 @@ class Trainer:
 
     def load_checkpoint(self, state: dict[str, Any]) -> None:
         load_checkpoint(self, state)
+
+
+def _check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
+    """Segments are cut from complete episodes, the first ones by the first session (a
+    task with terminal states may end episodes sooner: its first session waits for one)."""
+    if not config.reward.asks:
+        return
+    if config.segment_length > episode_length:
+        raise ValueError(
+            f"segment_length {config.segment_length} is longer than an episode of "
+            f"{config.task} ({episode_length} steps), so no segment can be cut; accepted: "
+            f"1 to {episode_length}"
+        )
+    if config.first_session_step < episode_length and not has_terminals:
+        raise ValueError(
+            f"the first feedback session (step {config.first_session_step}) comes before "
+            f"the first complete episode ({episode_length} steps); raise "
+            "--seed-steps or --unsup-steps"
+        )
+
+
+def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.device) -> None:
+    """The replay buffer keeps every step of the run: it must fit where it is stored."""
+    needed = steps * ReplayBuffer.row_width(obs_dim, act_dim) * 4
+    if storage.type == "cuda":
+        total = torch.cuda.get_device_properties(storage).total_memory
+    else:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if needed > total:
+        raise ValueError(
+            f"steps {steps}: the replay buffer keeps every step, {needed / 2**30:,.1f} GiB, "
+            f"more than the {total / 2**30:,.1f} GiB of memory on {storage.type}; lower --steps"
+        )
 
 
 def open_trainer(

@@ -1,0 +1,70 @@
+"""A labelling directory: one process at a time, and the settings it was started with.
+
+`take_directory` checks the path and locks it (`seqrank.dirs.DirLock`) before anything is
+written in it; a second `seqrank label` on the same directory is refused. The offline
+labelling settings are kept in the database at the first run; a rerun with other settings
+(a scheme, a number of questions, a segment length...) is refused with one line naming
+each difference, since stored sessions can only continue as they began. Asking more
+sessions (`--sessions`) continues a directory.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from seqrank.dirs import DirLock, check_folder, missing_folders, remove_made
+from seqrank.labelling.db import DB_NAME, LabelDB
+
+SETTINGS_KEY = "offline_settings"
+CONTINUABLE = ("sessions",)  # settings a rerun may change
+
+
+def take_directory(directory: Path, what: str = "labelling directory") -> DirLock:
+    """Check `directory`, make it if needed and lock it for this process; ValueError when
+    it cannot be used (nothing is left behind then)."""
+    check_folder(directory, what)
+    made = missing_folders(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    lock = DirLock(directory, what)
+    try:
+        lock.acquire()
+    except ValueError:
+        remove_made(made)
+        raise
+    return lock
+
+
+def check_offline_settings(directory: Path, settings: dict[str, Any]) -> None:
+    """ValueError naming each setting that differs from those the directory began with."""
+    if not (directory / DB_NAME).exists():
+        return
+    db = LabelDB.in_dir(directory)
+    try:
+        stored = db.get_meta(SETTINGS_KEY)
+        saved = json.loads(stored) if stored is not None else _from_sessions(db)
+    finally:
+        db.close()
+    differences = [
+        f"--{name.replace('_', '-')} {saved[name]} (not {settings.get(name)})"
+        for name in sorted(saved)
+        if name not in CONTINUABLE and saved[name] != settings.get(name)
+    ]
+    if differences:
+        raise ValueError(
+            f"labelling directory {directory} was started with {', '.join(differences)}; "
+            "rerun with its settings to continue, or choose another --out"
+        )
+
+
+def record_offline_settings(db: LabelDB, settings: dict[str, Any]) -> None:
+    db.set_meta(SETTINGS_KEY, json.dumps(settings))
+
+
+def _from_sessions(db: LabelDB) -> dict[str, Any]:
+    """What a directory made before the settings were kept tells of them: its sessions."""
+    rows = [row for row in db.sessions() if row["run"] == "offline"]
+    if not rows:
+        return {}
+    return {"scheme": rows[0]["scheme"], "questions": rows[0]["questions"]}

@@ -1,0 +1,194 @@
+"""Bad input to every command: exit code 2, one line on stderr that names the bad value and
+what is accepted, no traceback, and nothing made on disk (in the working folder, at the
+output path, or in the folders the command was given)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from seqrank.cli import main
+from seqrank.training.runs import RunDir
+from support.runs import tiny_config
+
+TOML = """
+device = "cpu"
+tasks = ["dmc:cartpole_swingup"]
+schemes = ["root"]
+out = "{out}"
+{extra}
+"""
+
+
+@pytest.fixture
+def given(tmp_path: Path) -> dict[str, str]:
+    """Things a command may be pointed at: a plain file, a folder, a run directory (no
+    checkpoint), a folder of runs, sweep files."""
+    folder = tmp_path / "given"
+    (folder / "runs").mkdir(parents=True)
+    (folder / "a-file").write_text("not a folder\n")
+    run = RunDir.create(folder / "runs" / "run", tiny_config(), "cpu")
+    run.release()
+    sweeps = {
+        "toml": TOML.format(out=folder / "sweep-out", extra=""),
+        "toml_out_file": TOML.format(out=folder / "a-file", extra=""),
+        "toml_discount": TOML.format(out=folder / "sweep-out", extra="[overrides]\ndiscount = 2"),
+    }
+    for name, text in sweeps.items():
+        (folder / f"{name}.toml").write_text(text)
+    return {
+        "file": str(folder / "a-file"),
+        "dir": str(folder),
+        "run": str(folder / "runs" / "run"),
+        "runs": str(folder / "runs"),
+        **{name: str(folder / f"{name}.toml") for name in sweeps},
+    }
+
+
+TRAIN = ["train", "--device", "cpu", "--task", "dmc:cartpole_swingup"]
+OFFLINE = ["label", "offline", "--task", "dmc:cartpole_swingup", "--port", "0"]
+ONLINE = ["label", "online", "--device", "cpu", "--port", "0", "--out", "online-run"]
+STUDY = ["label", "study", "--participant", "p1", "--device", "cpu", "--port", "0"]
+
+CASES = [
+    # train: ranges of the settings, and what they imply
+    ([*TRAIN, "--discount", "1.5"], "discount must be a number in (0, 1], got 1.5"),
+    ([*TRAIN, "--discount", "0"], "discount must be a number in (0, 1], got 0.0"),
+    ([*TRAIN, "--tau", "2"], "tau must be a number in (0, 1], got 2.0"),
+    ([*TRAIN, "--reward-stop-accuracy", "1.5"], "reward_stop_accuracy must be a number in (0, 1]"),
+    ([*TRAIN, "--actor-lr", "nan"], "actor_lr must be a finite number > 0, got nan"),
+    ([*TRAIN, "--critic-lr", "inf"], "critic_lr must be a finite number > 0, got inf"),
+    ([*TRAIN, "--reward-lr", "-0.1"], "reward_lr must be a finite number > 0, got -0.1"),
+    ([*TRAIN, "--init-temperature", "0"], "init_temperature must be a finite number > 0"),
+    ([*TRAIN, "--seed", "-1"], "seed must be a whole number from 0 to 4294967295, got -1"),
+    ([*TRAIN, "--seed", "99999999999999999999"], "seed must be a whole number from 0 to 42949"),
+    ([*TRAIN, "--steps", "0"], "steps must be a whole number from 1 to 2147483647, got 0"),
+    ([*TRAIN, "--hidden", "-3"], "hidden must be a whole number from 1 to 2147483647, got -3"),
+    ([*TRAIN, "--record-states", "2"], "record_states must be a whole number from 0 to 1, got 2"),
+    ([*TRAIN, "--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
+    ([*TRAIN, "--knn-k", "2000"], "knn_k 2000 must be smaller than seed_steps 1000"),
+    ([*TRAIN, "--oversample", "1000"], "oversample must be a whole number from 1 to 100, got"),
+    ([*TRAIN, "--heldout-pairs", "10000000"], "heldout_pairs must be a whole number from 1 to"),
+    (  # 1.2 TiB of replay buffer: more than any machine's memory
+        ["train", "--device", "cpu", "--task", "humanoid_walk", "--steps", "2147483647"],
+        "steps 2147483647: the replay buffer keeps every step, 1,264.0 GiB, more than the",
+    ),
+    ([*TRAIN, "--max-feedback", "100000"], "impossible budget"),
+    ([*TRAIN, "--segment-length", "5000"], "segment_length 5000 is longer than an episode"),
+    ([*TRAIN, "--teacher", "replay:missing.jsonl"], "label file missing.jsonl does not exist"),
+    ([*TRAIN, "--teacher", "perfect"], "unknown teacher 'perfect'; accepted: oracle"),
+    ([*TRAIN, "--task", "walker"], "unknown task 'walker'; accepted: walker_walk"),
+    ([*TRAIN, "--precision", "tf32"], "precision 'tf32' needs the fast path"),
+    ([*TRAIN, "--precision", "fp16"], "unknown precision 'fp16'; accepted: auto, fp32, tf32"),
+    ([*TRAIN, "--path", "quick"], "unknown path 'quick'; accepted: auto, reference, fast"),
+    ([*TRAIN, "--scheme", "tree"], "unknown scheme 'tree'; accepted: pairwise, sequential"),
+    ([*TRAIN, "--backbone", "ppo"], "unknown backbone 'ppo'; accepted: pebble, mrn"),
+    ([*TRAIN, "--selection", "best"], "unknown selection 'best'; accepted: uniform"),
+    ([*TRAIN, "--scale", "huge"], "argument --scale: invalid choice: 'huge'"),
+    (["train", "--device", "tpu"], "unknown device 'tpu'; accepted: auto, cpu, cuda"),
+    ([*TRAIN, "--reward-batch", "500", "--max-feedback", "100"], "exceeds max_feedback 100"),
+    (["train", "--resume", "/nonexistent/run"], "no run directory at /nonexistent/run"),
+    ([*TRAIN, "--wandb", " "], "--wandb needs a project name"),
+    ([*TRAIN, "--out", "{file}"], "run directory {file} is a file, not a folder"),
+    ([*TRAIN, "--out", "{file}/run"], "{file} is a file, not a folder"),
+    ([*TRAIN, "--out", "{dir}"], "run directory {dir} is not empty; resume it with --resume"),
+    (["train", "--resume", "{file}"], "no run directory at {file} (config.json missing)"),
+    (["train", "--resume", "{run}", "--steps", "10"], "drop --steps"),
+    # label: the page's options, the offline settings, online and study settings
+    ([*OFFLINE, "--port", "70000"], "70000 is out of range; accepted: 0 to 65535"),
+    ([*OFFLINE, "--countdown", "nan"], "--countdown nan: must be 0 (none) or more seconds"),
+    ([*OFFLINE, "--size", "2000"], "2000 is out of range; accepted: 16 to 480"),
+    ([*OFFLINE, "--fps", "0"], "argument --fps: 0 is out of range; accepted: 1 to 120"),
+    ([*OFFLINE, "--seed", "-1"], "argument --seed: -1 is out of range; accepted: 0 to 4294967295"),
+    ([*OFFLINE, "--questions", "0"], "argument --questions: 0 must be at least 1"),
+    ([*OFFLINE, "--segment-length", "5000"], "--segment-length 5000 is longer than an episode"),
+    ([*OFFLINE, "--out", "{file}"], "labelling directory {file} is a file, not a folder"),
+    (["label", "offline", "--from", "{run}"], "{run} has no checkpoint yet"),
+    (["label", "offline", "--task", "nope"], "unknown task 'nope'"),
+    ([*ONLINE, "--discount", "2"], "discount must be a number in (0, 1], got 2.0"),
+    ([*ONLINE, "--teacher", "oracle"], "the labelling page's teacher is the person"),
+    ([*ONLINE, "--port", "-1"], "argument --port: -1 is out of range; accepted: 0 to 65535"),
+    ([*STUDY, "--seed", "-5"], "seed must be a whole number from 0 to 4294967295, got -5"),
+    ([*STUDY, "--methods", "root,foo"], "--methods 'root,foo': give distinct schemes"),
+    ([*STUDY, "--task", "dmc:cheetah_run", "--max-feedback", "200"], "impossible budget"),
+    # labels
+    (
+        ["labels", "export", "{file}", "-o", "x.jsonl"],
+        "{file} holds no labels.sqlite (a labelling directory) nor config.json",
+    ),
+    (["labels", "export", "{run}", "-o", "{dir}"], "label file {dir} is a folder"),
+    (["labels", "import", "missing.jsonl", "new"], "label file missing.jsonl does not exist"),
+    (["labels", "import", "{file}", "new"], "{file} line 1: not JSON"),
+    # sweep
+    (["sweep", "missing.toml"], "sweep file missing.toml does not exist"),
+    (["sweep", "{toml}", "--workers", "0"], "argument --workers: 0 is out of range"),
+    (["sweep", "{toml}", "--cpus-per-run", "nan"], "argument --cpus-per-run: nan is out of range"),
+    (["sweep", "{toml}", "--gpus-per-run", "-1"], "argument --gpus-per-run: -1.0 is out of range"),
+    (["sweep", "{toml_out_file}"], "sweep folder {file} is a file, not a folder"),
+    (["sweep", "{toml_discount}"], "discount must be a number in (0, 1], got 2"),
+    # report
+    (["report", "{file}"], "{file} is not a folder"),
+    (["report", "{runs}", "--out", "{file}"], "report folder {file} is a file, not a folder"),
+    (["report", "{runs}", "--bootstrap", "10"], "argument --bootstrap: 10 is out of range"),
+    (["report", "{runs}", "--seed", "-1"], "argument --seed: -1 is out of range"),
+    # bench
+    (["bench", "--repeats", "0"], "argument --repeats: 0 is out of range; accepted: 1 to 1000"),
+    (["bench", "--loop-steps", "50"], "argument --loop-steps: 50 is out of range; accepted: 300"),
+    (["bench", "--device", "cpu", "--set", "discount=2"], "discount must be a number in (0, 1]"),
+    (["bench", "--device", "cpu", "--set", "nope=1"], "--set 'nope=1': expected FIELD=VALUE"),
+    (["bench", "--device", "cpu", "--out", "{file}/x"], "{file} is a file, not a folder"),
+    (["bench", "--device", "cpu", "--precisions", "fp16"], "unknown precision 'fp16'"),
+    (["bench", "--device", "tpu"], "argument --device: invalid choice: 'tpu'"),
+    # theory, simulate
+    (["theory", "--m", "1"], "argument --m: 1 is out of range; accepted: 2 to 10000"),
+    (["theory", "--m", "100000000"], "argument --m: 100000000 is out of range"),
+    (["theory", "--seed", "-1"], "argument --seed: -1 is out of range"),
+    (["theory", "--delta", "1.5"], "1.5 must lie strictly between 0 and 1"),
+    (["theory", "--enumerate-max", "12"], "--enumerate-max 12 is too large"),
+    (["simulate", "--questions", "100000000000"], "100000000000 is out of range; accepted: 1"),
+    (["simulate", "--seed", "-1"], "argument --seed: -1 is out of range"),
+    (["simulate", "--out", "{file}"], "--out {file} is a file, not a folder"),
+    (["simulate", "--schemes", "tree"], "unknown scheme 'tree'; accepted: pairwise"),
+    # reward-bench
+    (["reward-bench", "pool", "--task", "nope", "--out", "p.npz"], "unknown task 'nope'"),
+    (["reward-bench", "pool", "--out", "{dir}"], "pool file {dir} is a folder"),
+    (["reward-bench", "pool", "--seed", "-1", "--out", "p.npz"], "argument --seed: -1 is out"),
+    (["reward-bench", "pool", "--from-run", "{file}", "--out", "p.npz"], "no run directory at"),
+    (["reward-bench", "run", "--pool", "missing.npz"], "pool missing.npz does not exist"),
+    (["reward-bench", "run", "--pool", "m.npz", "--out", "{file}"], "pool m.npz does not exist"),
+    (["reward-bench", "run", "--pool", "m.npz", "--seeds", "0"], "argument --seeds: 0 is out"),
+    (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
+    # watch, study-report
+    (["watch", "{file}"], "no run directory at {file}"),
+    (["watch", "{run}"], "{run} has no checkpoint yet"),
+    (["watch", "{run}", "--size", "2000"], "argument --size: 2000 is out of range"),
+    (["watch", "{run}", "--episodes", "0"], "argument --episodes: 0 is out of range"),
+    (["watch", "{run}", "--out", "{file}"], "watch folder {file} is a file, not a folder"),
+    (["study-report", "{file}"], "{file} holds no participant"),
+    (["study-report", "{dir}", "--json", "x.json"], "{dir} holds no participant"),
+    # no such command
+    (["fly"], "invalid choice: 'fly'"),
+]
+
+
+def snapshot(folder: Path) -> dict[str, int]:
+    return {str(p.relative_to(folder)): p.stat().st_mtime_ns for p in folder.rglob("*")}
+
+
+@pytest.mark.parametrize(("args", "message"), CASES, ids=[" ".join(a) for a, _ in CASES])
+def test_bad_input_is_one_line_exit_2_and_nothing_made(
+    args, message, given, tmp_path, monkeypatch, capsys
+):
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    before = snapshot(Path(given["dir"]))
+    code = main([arg.format(**given) for arg in args])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message.format(**given) in err
+    assert len(err.strip().splitlines()) == 1, err
+    assert err.startswith("seqrank") and "Traceback" not in err
+    assert list(work.iterdir()) == []  # nothing in the working folder (default outputs)
+    assert snapshot(Path(given["dir"])) == before  # nothing in the given folders

@@ -1,0 +1,84 @@
+"""A labelling directory: one `seqrank label` at a time (a killed one's lock is taken over),
+Ctrl-C writes the export of every answer, and a rerun with other settings is refused with
+one line naming them."""
+
+from __future__ import annotations
+
+import signal
+import time
+
+import httpx
+
+from seqrank.cli import main
+from seqrank.labelling.db import LabelDB
+from support.pages import start_command
+
+COMMAND = [
+    "label", "offline", "--task", "dmc:cartpole_swingup", "--scheme", "root",
+    "--questions", "3", "--episodes", "1", "--countdown", "0", "--port", "0",
+]  # fmt: skip
+
+
+def answer_one(url: str) -> None:
+    for _ in range(1200):
+        state = httpx.get(f"{url}/api/state").json()
+        if state["status"] == "question":
+            body = {"question_id": state["question"]["id"], "choice": "left", "latency_ms": 9}
+            assert httpx.post(f"{url}/api/answer", json=body).status_code == 200
+            return
+        time.sleep(0.05)
+    raise AssertionError("no question was shown")
+
+
+def test_one_label_process_per_directory_ctrl_c_exports_and_changed_settings_are_named(
+    tmp_path, capsys
+):
+    directory = tmp_path / "labels"
+    command = [*COMMAND, "--out", str(directory)]
+    process, url = start_command(command)
+    try:
+        answer_one(url)
+        # a second labelling process on the same directory is refused
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert f"labelling directory {directory} is in use by another seqrank process" in err
+        assert f"(pid {process.pid})" in err and len(err.strip().splitlines()) == 1
+        # Ctrl-C: the page stops waiting and the export holds the answer given
+        process.send_signal(signal.SIGINT)
+        assert process.wait(60) == 128 + signal.SIGINT
+    finally:
+        if process.poll() is None:
+            process.kill()
+    exported = (directory / "labels.jsonl").read_text()
+    assert exported.count('"type": "answer"') == 1
+    assert len(LabelDB.in_dir(directory).answered_questions()) == 1
+
+    # a process killed outright leaves its lock to the next one, which refuses other settings
+    process, url = start_command(command)
+    process.send_signal(signal.SIGKILL)
+    process.wait(10)
+    changed = [*COMMAND, "--out", str(directory)]
+    changed[changed.index("root")] = "sequential"
+    changed[changed.index("--questions") + 1] = "4"
+    assert main(changed) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"labelling directory {directory} was started with --questions 3 (not 4), --scheme "
+        "root (not sequential); rerun with its settings to continue, or choose another --out"
+    ) in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_study_rerun_with_other_settings_is_refused_before_the_page_starts(tmp_path, capsys):
+    from seqrank.training.runs import RunDir
+    from support.runs import tiny_config
+
+    begun = tiny_config(scheme="root", teacher="human", record_states=1)
+    RunDir.create(tmp_path / "study" / "p1" / "root", begun, "cpu").release()
+    args = ["label", "study", "--participant", "p1", "--study-dir", str(tmp_path / "study")]
+    settings = [f"--{k.replace('_', '-')}={v}" for k, v in begun.as_dict().items()]
+    kept = [s for s in settings if s.split("=")[0] not in ("--scheme", "--teacher", "--scale")]
+    assert main([*args, "--methods", "root", "--port", "0", *kept, "--max-feedback=20"]) == 2
+    err = capsys.readouterr().err
+    assert "participant p1 began method root with other settings (max_feedback 30 -> 20)" in err
+    assert len(err.strip().splitlines()) == 1
