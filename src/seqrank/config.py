@@ -7,8 +7,10 @@ overrides. Every field is a `seqrank train` option (`--field-name VALUE`).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
 from seqrank.choices import (
@@ -83,6 +85,10 @@ class TrainConfig:
     oversample: int = 10
     episodes_kept: int = 100
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
+    # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
+    # buffer and episodes to start from, and what the sessions' clips show (`FINETUNE_PARTS`)
+    start_from: str = ""
+    parts: str = ""
     # reward model (SPEC section 5)
     reward_ensemble: int = 3
     reward_hidden: int = 256
@@ -247,7 +253,7 @@ MAX_SEED = 2**32 - 1
 # settings whose size each feedback session allocates at once: a candidate pool this many
 # times what the scheme needs, and this many held-out segment pairs
 MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
-FROM_ZERO = ("seed", "unsup_steps", "updates_after_reset", "record_states")
+FROM_ZERO = ("seed", "seed_steps", "unsup_steps", "updates_after_reset", "record_states")
 AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
 
 
@@ -311,6 +317,39 @@ def validate(config: TrainConfig) -> None:
         )
     if config.reward.asks:
         _check_budget(config)
+    _check_fine_tuning(config)
+
+
+# what the clips of a session show, in session order (the study's instructions: first
+# low-performing trajectories, then trajectories of varying performance)
+FINETUNE_PARTS = ("low", "varied")
+
+
+def _check_fine_tuning(config: TrainConfig) -> None:
+    parts = [p for p in config.parts.split(",") if p]
+    if any(p not in FINETUNE_PARTS for p in parts):
+        raise ValueError(
+            f"parts {config.parts!r}: give a comma-separated list of {', '.join(FINETUNE_PARTS)}"
+        )
+    if not config.start_from:
+        return
+    source = Path(config.start_from)
+    if not (source / "checkpoint.pt").is_file() or not (source / "config.json").is_file():
+        raise ValueError(
+            f"start_from {config.start_from!r}: not a run directory with a checkpoint "
+            "(config.json and checkpoint.pt)"
+        )
+    saved = json.loads((source / "config.json").read_text())
+    if canonical_task(saved["task"]) != canonical_task(config.task):
+        raise ValueError(
+            f"start_from {config.start_from!r} trained {saved['task']!r}, not {config.task!r}"
+        )
+    for name in ("hidden", "layers", "reward_hidden", "reward_layers", "reward_ensemble"):
+        if saved.get(name) != getattr(config, name):
+            raise ValueError(
+                f"start_from {config.start_from!r} has {name} {saved.get(name)!r}, this run "
+                f"{getattr(config, name)!r}: a run starts from one of the same task and sizes"
+            )
 
 
 def _check_budget(config: TrainConfig) -> None:

@@ -31,6 +31,13 @@ def add_study(modes: Any) -> None:
     study.add_argument("--participant", required=True, help="participant id, e.g. p01")
     study.add_argument("--study-dir", type=Path, default=Path("seqrank-out/study"))
     study.add_argument("--methods", default=",".join(("pairwise", "sequential", "root")))
+    study.add_argument(
+        "--finetune",
+        action="store_true",
+        help="the fine-tuning study (Table 3: 400 steps, learning rate 1e-8, 20 answers in two "
+        "sessions, 30-step clips) from the run given by --start-from; options given "
+        "explicitly win",
+    )
     add_run_options(study, wandb=False)
     server_options(study)
 
@@ -45,8 +52,9 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
     human_overrides(args)
     participant_dir = args.study_dir / args.participant
     new = new_run(args, resolve_device)
+    given = {**_finetune_preset(new.given), **new.given} if args.finetune else new.given
     configs = {  # every method's settings, checked before anything is written
-        method: resolve_config(new.task, new.scale, {**new.given, "scheme": method})
+        method: resolve_config(new.task, new.scale, {**given, "scheme": method})
         for method in methods
     }
     if args.dry_run:
@@ -150,3 +158,11 @@ def _study_methods(args: argparse.Namespace) -> tuple[str, ...]:
             f"--methods {args.methods!r}: give distinct schemes from {', '.join(SCHEMES)}"
         )
     return methods
+
+
+def _finetune_preset(given: dict[str, Any]) -> dict[str, Any]:
+    from seqrank.training.finetune import FINETUNE_PRESET
+
+    if not given.get("start_from"):
+        raise ValueError("--finetune starts each method from a trained run: give --start-from RUN")
+    return FINETUNE_PRESET

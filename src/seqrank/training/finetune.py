@@ -42,17 +42,12 @@ FINETUNE_PRESET: dict[str, Any] = {
     "checkpoint_every": 200,
 }
 
-# per part: the probability that a step's action is random, one episode per value
+# per part (`config.FINETUNE_PARTS`): the probability that a step's action is random, one
+# episode per value
 PARTS: dict[str, tuple[float, ...]] = {
     "low": (1.0, 0.9, 0.8, 0.7),
     "varied": (0.0, 0.25, 0.5, 0.75, 1.0),
 }
-
-
-def check_parts(parts: tuple[str, ...]) -> None:
-    unknown = [p for p in parts if p not in PARTS]
-    if unknown:
-        raise ValueError(f"--parts {','.join(parts)!r}: accepted parts are {', '.join(PARTS)}")
 
 
 def start_from(trainer: Trainer, state: dict[str, Any]) -> None:

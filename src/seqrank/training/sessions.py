@@ -4,6 +4,7 @@ training goes on; their labels count once the session is complete."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -45,6 +46,8 @@ class FeedbackSessions:
         self.schedule, self.plan, self.source = schedule, plan, source
         self.episodes, self.reward_model, self.rng = episodes, reward_model, rng
         self.wait_for_feedback = wait_for_feedback
+        # called with the session's index before its segments are cut (fine-tuning's parts)
+        self.before_session: Callable[[int], None] | None = None
         self.pending: tuple[SessionRequest, Future[tuple[Segments, SessionRecord]]] | None = None
         self._background: ThreadPoolExecutor | None = None
 
@@ -71,6 +74,8 @@ class FeedbackSessions:
         """Ask the next session: its answers, or None while it is answered in the
         background (the first session is always waited for)."""
         first = c.sessions == 0
+        if self.before_session is not None:
+            self.before_session(c.sessions)
         request = self._request(c, first)
         if first or self.wait_for_feedback:
             return AnsweredSession(request, *self.source.ask_session(request))

@@ -6,6 +6,7 @@ import contextlib
 import os
 import threading
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,6 +32,7 @@ from seqrank.training.evaluator import (
     Evaluations,
     InlineEvaluations,
 )
+from seqrank.training.finetune import refill_for_part, start_from
 from seqrank.training.pretrain import EntropyPretraining
 from seqrank.training.reward_phase import RewardLearning, RewardSettings
 from seqrank.training.runs import RunDir
@@ -64,7 +66,13 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
         self.eval_env = make_env(config.task, config.seed)
-        _check_episode_fits(config, self.env.episode_length, self.env.has_terminals)
+        # a fine-tuning run starts with the saved run's episodes: its first session needs none
+        started = bool(config.start_from)
+        _check_episode_fits(config, self.env.episode_length, self.env.has_terminals or started)
+        self.start_state = (
+            RunDir.open(Path(config.start_from)).load_checkpoint() if started else None
+        )
+        kept = 0 if self.start_state is None else int(self.start_state["replay"]["size"])
         self.runtime = runtime = resolve_runtime(
             config.device, config.path, config.precision, self.env.discrete
         )
@@ -72,7 +80,7 @@ class Trainer:
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
         # the reference path keeps the buffer on the host and copies each batch over
         storage = device if runtime.fast else torch.device("cpu")
-        _check_replay_fits(config.steps, obs_dim, act_dim, storage)
+        _check_replay_fits(kept + config.steps, obs_dim, act_dim, storage)
         self.agent = make_agent(config, self.env, runtime)
         self.reward_model = RewardModel(
             config.reward_ensemble,
@@ -83,7 +91,7 @@ class Trainer:
             device,
         )
         train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
-        self.replay = ReplayBuffer(config.steps, obs_dim, act_dim, device, storage, train_on)
+        self.replay = ReplayBuffer(kept + config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore()
         self.source = source if source is not None else make_source(config.teacher)
@@ -94,6 +102,9 @@ class Trainer:
         # set (by a signal handler, say) to stop at the next episode end with a checkpoint
         self.stop_requested = threading.Event()
         self._assemble_phases(wait_for_feedback)
+        if self.start_state is not None:  # (the run's own checkpoint, if any, comes after)
+            start_from(self, self.start_state)
+            self.start_state = None  # its replay buffer is large
 
     def _assemble_phases(self, wait_for_feedback: bool) -> None:
         config, runtime, env = self.config, self.runtime, self.env
@@ -131,6 +142,9 @@ class Trainer:
             self.rng,
             wait_for_feedback,
         )
+        study_parts = tuple(p for p in config.parts.split(",") if p)
+        if study_parts:  # before each session: episodes of the study part's skill levels
+            self.sessions.before_session = lambda k: refill_for_part(self, study_parts, k)
         self.reward = self._reward_learning()
         parts = UpdateParts(
             self.agent,
