@@ -40,7 +40,7 @@ def test_a_run_starts_from_the_saved_agent_and_buffer_and_asks_per_part(tmp_path
 
 
 def test_starting_from_a_run_of_another_task_or_size_is_refused(tmp_path, source):
-    with pytest.raises(ValueError, match="hidden 32.*this run 64"):
+    with pytest.raises(ValueError, match=r"hidden 32.*this run 64"):
         finetune_config(source, hidden=64)
     with pytest.raises(ValueError, match="not a run directory with a checkpoint"):
         finetune_config(tmp_path)
