@@ -40,9 +40,17 @@ TASK = "dmc:cartpole_swingup"
 
 
 def serve_offline(
-    directory: Path, task: str, scheme: str, questions: int, countdown: float, token=None
+    directory: Path,
+    task: str,
+    scheme: str,
+    questions: int,
+    countdown: float,
+    token=None,
+    playback="side-by-side",
 ):
-    options = ServerOptions(port=0, token=token, countdown_s=countdown, annotator="e2e")
+    options = ServerOptions(
+        port=0, token=token, countdown_s=countdown, annotator="e2e", playback=playback
+    )
     hub = open_hub(directory, task, options)
     server = PageServer(hub, ServerOptions(port=0))
     server.start()
@@ -413,5 +421,31 @@ def test_the_next_clips_show_moments_after_an_answer(tmp_path):
                 )
             )  # from memory, not fetched after the answer
             browser.close()
+    finally:
+        stop(hub, server)
+
+
+def test_clips_can_play_one_after_the_other(tmp_path):
+    """The study's instructions: the two clips play in turn, the resting one dimmed."""
+    hub, server, _ = serve_offline(
+        tmp_path / "labels", TASK, "pairwise", 2, 0.0, playback="one-after-another"
+    )
+    playing = (
+        "() => ['left-video', 'right-video'].map(id => document.getElementById(id))"
+        ".map(v => !v.paused && !v.classList.contains('resting'))"
+    )
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, server.url)
+            wait_question(page, 1, 2)
+            page.wait_for_function(f"() => ({playing})()[0]", timeout=30_000)
+            assert page.evaluate(playing) == [True, False]  # left first, right waits
+            page.wait_for_function(f"() => ({playing})()[1]", timeout=30_000)
+            assert page.evaluate(playing) == [False, True]  # then right, left rests
+            page.wait_for_function(f"() => ({playing})()[0]", timeout=30_000)  # and again
+            page.keyboard.press("ArrowLeft")
+            wait_question(page, 2, 2)
+            browser.close()
+        assert [a.choice for _, a in hub.db.answered_questions()] == ["left"]
     finally:
         stop(hub, server)

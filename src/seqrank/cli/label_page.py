@@ -13,6 +13,7 @@ from seqrank.errors import UsageError
 from seqrank.labelling import CLIP_SIZE
 
 SERVER_HELP = "labelling page options"
+PLAYBACKS = ("side-by-side", "one-after-another")
 MAX_COUNTDOWN = 3600.0  # seconds per question
 
 
@@ -44,6 +45,13 @@ def server_options(parser: argparse.ArgumentParser) -> None:
         "--size", type=frame_size, default=CLIP_SIZE, help=f"clip width and height ({CLIP_SIZE})"
     )
     group.add_argument(
+        "--playback",
+        choices=PLAYBACKS,
+        default=PLAYBACKS[0],
+        help="the two clips loop side by side, or play one after the other in turn (as the "
+        "paper's study instructions describe)",
+    )
+    group.add_argument(
         "--keep-serving", action="store_true", help="keep the page up after the last answer"
     )
 
@@ -70,6 +78,7 @@ def page_options(args: argparse.Namespace) -> Any:
         args.fps,
         args.size,
         allowed_hosts=tuple(args.allow_host),
+        playback=args.playback,
     )
 
 

@@ -50,6 +50,7 @@ class ServerOptions:
     fps: int = 30
     size: int = CLIP_SIZE
     allowed_hosts: tuple[str, ...] = ()  # more names the page is reached by (Host check)
+    playback: str = "side-by-side"  # or "one-after-another"
 
 
 class PageServer:
@@ -104,7 +105,7 @@ def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
     """The database in `directory` and a renderer for `task`'s clips."""
     db = LabelDB.in_dir(directory)
     token = page_token(options.host, options.token)
-    settings = PageSettings(options.countdown_s, options.annotator, token)
+    settings = PageSettings(options.countdown_s, options.annotator, token, options.playback)
     hub = Hub(db, settings)
     if canonical_task(task)[0] in ("gym", "custom"):  # the others all re-render from state
         probe = make_env(task, 0)

@@ -34,6 +34,9 @@ class PageSettings:
     countdown_s: float = 3.0  # 0: no time limit
     annotator: str = "anonymous"
     token: str | None = None  # required on every request when set
+    # "side-by-side": both clips loop together; "one-after-another": each plays in turn (the
+    # paper's study instructions)
+    playback: str = "side-by-side"
 
 
 @dataclass

@@ -124,6 +124,7 @@ def page_state(hub: Hub) -> dict[str, object]:
         "sessions": hub.sessions_total,
         "message": hub.message,
         "clip_source": hub.clip_source,
+        "playback": hub.settings.playback,
     }
     question = hub.db.pending_question()
     if question is not None:

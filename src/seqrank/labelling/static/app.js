@@ -24,6 +24,7 @@ let timerFrame = 0;
 let pollTimer = 0;
 let answeredAt = -1e9;   // when the last answer was acknowledged (ms, performance clock)
 let answeredId = null;   // the question last answered here, never shown again
+let playback = "side-by-side"; // or "one-after-another": each clip plays in turn
 const CLIPS_KEPT = 40;
 // clip address -> {objectUrl, video}: its bytes in memory and a video element that has
 // decoded its first frame already (used once, by swapping it into place); null: loading
@@ -66,6 +67,8 @@ function decodedVideo(src) {
 // decoded one is swapped in, anything else loads from memory or from the server.
 function placeClip(name, url) {
   let video = $(`${name}-video`);
+  video.loop = playback !== "one-after-another";
+  video.classList.remove("resting");
   if (video.dataset.clip === url && video.readyState >= 2) return;
   const entry = clips.get(url);
   if (entry && entry.video) {
@@ -77,6 +80,8 @@ function placeClip(name, url) {
     video.src = entry ? entry.objectUrl : url; // the cookie carries the access
     video.load();
   }
+  video.loop = playback !== "one-after-another";
+  video.classList.remove("resting");
   video.dataset.clip = url;
 }
 
@@ -166,6 +171,7 @@ async function poll() {
 
 function render(state) {
   countdownS = state.countdown_s || 0;
+  playback = state.playback || "side-by-side";
   $("who").textContent = state.annotator ? `annotator: ${state.annotator}` : "";
   $("clip-source").textContent = state.clip_source === "frames"
     ? "clips: frames recorded while the episode was played"
@@ -231,7 +237,8 @@ function waitForClips(id) {
   const start = () => {
     if (started || !current || current.id !== id) return;
     started = true;
-    for (const v of videos) v.play().catch(() => {});
+    if (playback === "one-after-another") playInTurn(videos, id);
+    else for (const v of videos) v.play().catch(() => {});
     startCountdown();
   };
   for (const v of videos) v.dataset.ready = "";
@@ -242,6 +249,24 @@ function waitForClips(id) {
     v.addEventListener("error", mark, { once: true });
   }
   setTimeout(start, 8000); // never let a slow clip block the page
+}
+
+// Left plays once, then right, then left again..., the resting one dimmed and paused.
+function playInTurn(videos, id) {
+  let turn = 0;
+  const next = () => {
+    if (!current || current.id !== id) return;
+    videos.forEach((v, k) => {
+      v.classList.toggle("resting", k !== turn);
+      if (k !== turn) v.pause();
+    });
+    const playing = videos[turn];
+    playing.loop = false;
+    playing.currentTime = 0;
+    playing.addEventListener("ended", () => { turn = 1 - turn; next(); }, { once: true });
+    playing.play().catch(() => {});
+  };
+  next();
 }
 
 function startCountdown() {
