@@ -230,15 +230,3 @@ def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.de
             f"steps {steps}: the replay buffer keeps every step, {needed / 2**30:,.1f} GiB, "
             f"more than the {total / 2**30:,.1f} GiB of memory on {storage.type}; lower --steps"
         )
-
-
-def open_trainer(
-    factory: Callable[[TrainConfig, RunDir], Trainer], config: TrainConfig, run: RunDir
-) -> tuple[Trainer, dict[str, Any] | None]:
-    """A trainer for `run`, continued from its checkpoint when it has one. Checkpoints do
-    not depend on the path, so a run may resume on the other one."""
-    state = run.load_checkpoint()
-    trainer = factory(config, run)
-    if state is not None:
-        trainer.load_checkpoint(state)
-    return trainer, state
