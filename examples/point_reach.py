@@ -2,7 +2,7 @@
 
 From the repository root:
 
-    seqrank train --task examples.point_reach:make_env --steps 4000
+    seqrank train --task examples.point_reach:make_env --steps 20000 --feedback-frequency 3000
     seqrank label offline --task examples.point_reach:make_env --questions 10 --out labels
 
 `module.path:factory` names a function that returns a `gymnasium.Env` with Box observation

@@ -12,7 +12,7 @@ from seqrank.choices import Backbone, Selection, parse_choice
 from seqrank.config import resolve_config
 from seqrank.envs import make_env
 from seqrank.envs.recorder import EpisodeRecorder
-from seqrank.episodes import EpisodeStore
+from seqrank.episodes import Episode, EpisodeStore
 from seqrank.feedback.schemes import SchemeName, scheme_has_defender, segments_needed
 from seqrank.feedback.teachers import TEACHER_PRESETS, parse_teacher
 from seqrank.training.sessions import FeedbackSessions, Schedule
@@ -31,8 +31,11 @@ class _Source:
         return session < self.sessions
 
 
-def _sessions(source: _Source, wait: bool = True) -> FeedbackSessions:
-    return FeedbackSessions(SCHEDULE, None, source, None, None, None, wait)  # type: ignore[arg-type]
+def _sessions(source: _Source, wait: bool = True, episodes: int = 1) -> FeedbackSessions:
+    store = EpisodeStore(4)
+    for _ in range(episodes):
+        store.add(Episode(np.zeros((60, 3)), np.zeros((60, 1)), np.zeros(60)))
+    return FeedbackSessions(SCHEDULE, None, source, store, None, None, wait)  # type: ignore[arg-type]
 
 
 def test_the_first_session_is_due_at_once_then_every_feedback_frequency_steps():
@@ -42,6 +45,12 @@ def test_the_first_session_is_due_at_once_then_every_feedback_frequency_steps():
     for step, due in ((1300, False), (1699, False), (1700, True)):
         c.step = step
         assert sessions.due(c, sessions.is_open(c)) is due, step
+
+
+def test_no_session_before_a_complete_episode_to_cut_segments_from():
+    c = Counters(step=1200)
+    assert not _sessions(_Source(5), episodes=0).due(c, True)  # a task with terminal states
+    assert _sessions(_Source(5), episodes=1).due(c, True)
 
 
 def test_feedback_closes_when_the_budget_or_the_source_runs_out():

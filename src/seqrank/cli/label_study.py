@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
@@ -52,10 +53,14 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
     human_overrides(args)
     participant_dir = args.study_dir / args.participant
     new = new_run(args, resolve_device)
-    given = {**_finetune_preset(new.given), **new.given} if args.finetune else new.given
+    task, given = new.task, new.given
+    if args.finetune:  # Table 3, and the trained run's task and sizes unless given
+        preset, source = _finetune_preset(given)
+        task = task if hasattr(args, "task") else source["task"]
+        sizes = {k: source[k] for k in SOURCE_SIZES if k not in given and k in source}
+        given = {**preset, **sizes, **given}
     configs = {  # every method's settings, checked before anything is written
-        method: resolve_config(new.task, new.scale, {**given, "scheme": method})
-        for method in methods
+        method: resolve_config(task, new.scale, {**given, "scheme": method}) for method in methods
     }
     if args.dry_run:
         say(f"settings valid for {', '.join(methods)} (dry run: nothing written)")
@@ -160,9 +165,19 @@ def _study_methods(args: argparse.Namespace) -> tuple[str, ...]:
     return methods
 
 
-def _finetune_preset(given: dict[str, Any]) -> dict[str, Any]:
+# what a fine-tuning run takes from the run it starts from unless given
+SOURCE_SIZES = ("hidden", "layers", "reward_hidden", "reward_layers", "reward_ensemble")
+
+
+def _finetune_preset(given: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Table 3's settings and the saved settings of the run given by --start-from."""
     from seqrank.training.finetune import FINETUNE_PRESET
 
     if not given.get("start_from"):
         raise ValueError("--finetune starts each method from a trained run: give --start-from RUN")
-    return FINETUNE_PRESET
+    saved = Path(given["start_from"]) / "config.json"
+    if not saved.is_file():
+        raise ValueError(
+            f"--start-from {given['start_from']}: not a run directory (no config.json)"
+        )
+    return FINETUNE_PRESET, json.loads(saved.read_text())

@@ -128,6 +128,19 @@ def parse_lines(lines: Iterable[str], source: str = "<labels>") -> LabelFile:
     return LabelFile(header, segments, answers, surveys)
 
 
+def _segment_names(asked: list[Any], run: str) -> tuple[dict[int, int], dict[int, str]]:
+    """Each asked segment's session (the first it appears in) and its name in the file:
+    run/session/position within the session."""
+    session_of: dict[int, int] = {}
+    for session, _, first, second, _, _ in asked:
+        session_of.setdefault(first, session)
+        session_of.setdefault(second, session)
+    start: dict[int, int] = {}
+    for index, session in session_of.items():
+        start[session] = min(start.get(session, index), index)
+    return session_of, {i: f"{run}/{s}/{i - start[s]}" for i, s in session_of.items()}
+
+
 def store_lines(
     store: Any, header: dict[str, Any], run: str, scheme: str, annotator: str
 ) -> Iterable[str]:
@@ -144,14 +157,7 @@ def store_lines(
         if not inferred
     ]
     yield json.dumps({"type": "header", "format": FORMAT, "version": VERSION, **header})
-    session_of: dict[int, int] = {}
-    for session, _, first, second, _, _ in asked:
-        session_of.setdefault(first, session)
-        session_of.setdefault(second, session)
-    start: dict[int, int] = {}
-    for index, session in session_of.items():
-        start[session] = min(start.get(session, index), index)
-    names = {i: f"{run}/{s}/{i - start[s]}" for i, s in session_of.items()}
+    session_of, names = _segment_names(asked, run)
     for index in sorted(names):
         states = store.segment_states[index]
         yield json.dumps(
