@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import httpx
 import numpy as np
 from fastapi.testclient import TestClient
 
@@ -122,3 +123,30 @@ def start_command(args: list[str]) -> tuple[subprocess.Popen[str], str]:
             break
     process.kill()
     raise AssertionError("the server did not print its address")
+
+
+class Participant(threading.Thread):
+    """Answers every question 'left' and every survey with the next satisfaction score."""
+
+    def __init__(self, url: str, scores: list[int]):
+        super().__init__(daemon=True)
+        self.url, self.scores, self.halt = url, list(scores), threading.Event()
+
+    def run(self) -> None:
+        while not self.halt.is_set():
+            try:
+                state = httpx.get(f"{self.url}/api/state").json()
+            except httpx.HTTPError:
+                return  # the server has gone: the study is over
+            if state["status"] == "question":
+                body = {"question_id": state["question"]["id"], "choice": "left", "latency_ms": 5}
+                httpx.post(f"{self.url}/api/answer", json=body)
+            elif state["status"] == "survey":
+                body = {
+                    "run": state["survey_run"],
+                    "satisfaction": self.scores.pop(0),
+                    "criteria": "x",
+                }
+                httpx.post(f"{self.url}/api/survey", json=body)
+            else:
+                time.sleep(0.05)
