@@ -52,8 +52,11 @@ def test_wandb_option_logs_offline_and_a_resume_continues_the_same_run(tmp_path,
     assert json.loads((out / "meta.json").read_text())["wandb"] == "seqrank-test"
     (log,) = out.glob(f"wandb/offline-run-*-{saved['id']}/run-{saved['id']}.wandb")
     assert log.stat().st_size > 0
+    (out / "summary.json").unlink()  # as if stopped after its last checkpoint
     assert main(["train", "--resume", str(out), "--quiet"]) == 0
+    assert (out / "summary.json").exists()  # it was resumed, not left alone as finished
     assert json.loads((out / "wandb.json").read_text())["id"] == saved["id"]  # the same run
+    assert len(list(out.glob(f"wandb/offline-run-*-{saved['id']}"))) >= 1
 
 
 def test_bad_wandb_options_are_named(tmp_path, capsys):
