@@ -16,8 +16,11 @@ from pathlib import Path
 import httpx
 import pytest
 
+from seqrank.cli import main
 from seqrank.labelling.app import OfflineOptions, PageServer, ServerOptions, open_hub, run_offline
+from seqrank.labelling.db import LabelDB
 from seqrank.labelling.human import Stopped
+from support.pages import start_command
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -449,3 +452,53 @@ def test_clips_can_play_one_after_the_other(tmp_path):
         assert [a.choice for _, a in hub.db.answered_questions()] == ["left"]
     finally:
         stop(hub, server)
+
+
+def test_the_fine_tuning_study_in_the_browser(tmp_path):
+    """`label study --finetune` from a trained run, answered in Chromium: clips in turn,
+    two parts of 10 questions, then the survey; the command ends by itself."""
+    sizes = ["--hidden", "32", "--batch", "32", "--reward-hidden", "32", "--device", "cpu"]
+    source = tmp_path / "trained"
+    trained = ["train", "--task", TASK, "--reward", "true", "--steps", "1000", "--quiet"]
+    assert (
+        main(
+            [*trained, "--eval-every", "1000", "--eval-episodes", "1", "--out", str(source), *sizes]
+        )
+        == 0
+    )
+    study = tmp_path / "study"
+    args = ["label", "study", "--participant", "p1", "--study-dir", str(study), "--finetune"]
+    args += ["--start-from", str(source), "--parts", "low,varied", "--methods", "root"]
+    args += ["--eval-episodes", "1", "--reward-epochs", "3", "--heldout-pairs", "20"]
+    args += ["--countdown", "0", "--port", "0", "--size", "64", "--playback", "one-after-another"]
+    process, url = start_command([*args, *sizes])
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser, page = open_page(playwright, url)
+            for session in (1, 2):
+                for number in range(1, 11):
+                    page.wait_for_function(
+                        "() => document.getElementById('progress').textContent"
+                        f".includes('session {session}') && document.getElementById('progress')"
+                        f".textContent.includes('question {number} of 10')"
+                        " && !document.getElementById('left').disabled",
+                        timeout=120_000,
+                    )
+                    if (session, number) == (1, 1):  # the clips play in turn
+                        page.wait_for_function(
+                            "() => document.getElementById('right-video')"
+                            ".classList.contains('resting')",
+                            timeout=30_000,
+                        )
+                    page.keyboard.press("ArrowLeft")
+            page.wait_for_selector("#survey:not([hidden])", timeout=120_000)
+            page.check("input[name=satisfaction][value='5']")
+            page.click("#survey-submit")
+            assert process.wait(300) == 0
+            browser.close()
+    finally:
+        if process.poll() is None:
+            process.kill()
+    db = LabelDB.in_dir(study / "p1")
+    assert len(db.answered_questions("root")) == 20 and db.survey("root")["satisfaction"] == 5
+    db.close()
