@@ -3,7 +3,8 @@ pairwise comparison and transitive label augmentation (SeqRank, NeurIPS 2023).
 
 The public Python API (documented in the README; `help(seqrank.<name>)`):
 
-- asking: `run_scheme`, `close_preferences`, `Answer`, `SCHEMES`;
+- asking: `run_scheme`, `close_preferences`, `Recheck` (noise-aware augmentation),
+  `Answer`, `SCHEMES`;
 - training: `make_config`, `train`, `TrainConfig`, `JudgeSource`, `Segment`,
   `FeedbackSource` (the protocol a custom source implements), `SessionRequest`;
 - looking: `load_run`, `Run`, `make_env`.
@@ -28,6 +29,7 @@ _PUBLIC = {
     "JudgeSource": "seqrank.api",
     "Segment": "seqrank.api",
     "Answer": "seqrank.types",
+    "Recheck": "seqrank.feedback.checking",
     "TrainConfig": "seqrank.config",
     "FeedbackSource": "seqrank.feedback.session",
     "SessionRequest": "seqrank.feedback.session",

@@ -21,6 +21,7 @@ from seqrank.agents.protocol import Policy
 from seqrank.config import TrainConfig, resolve_config
 from seqrank.envs import SimEnv, make_env
 from seqrank.episodes import Segments
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import Augmentation, augment
 from seqrank.feedback.schemes import SessionRecord, get_scheme, uniform_choice
 from seqrank.feedback.session import FeedbackSource, SessionRequest
@@ -33,21 +34,27 @@ def run_scheme(
     budget: int,
     ask: Callable[[int, int], Answer],
     seed: int = 0,
+    recheck: Recheck | None = None,
 ) -> SessionRecord:
     """Ask `budget` questions about segments `0 .. pool_size - 1` the way `scheme`
     (pairwise, sequential, root or ranked) asks them. `ask(first, second)` gets two
-    segment ids and returns an `Answer`; in schemes with a defender, `first` is it."""
+    segment ids and returns an `Answer`; in schemes with a defender, `first` is it.
+    With a `Recheck` (noise-aware augmentation) answers that would imply many pairs are
+    asked again within the budget."""
     rng = np.random.default_rng(seed)
-    return get_scheme(scheme)(pool_size, budget, ask, rng, uniform_choice)
+    return get_scheme(scheme)(pool_size, budget, ask, rng, uniform_choice, recheck)
 
 
 def close_preferences(
-    answers: Iterable[AnsweredQuestion], true_returns: list[float] | None = None
+    answers: Iterable[AnsweredQuestion],
+    true_returns: list[float] | None = None,
+    path_unchecked: int | None = None,
 ) -> Augmentation:
     """The answered pairs plus every pair they imply by transitivity (segments caught in a
-    preference cycle imply nothing). With `true_returns` (per segment id) the stats count
+    preference cycle imply nothing; with `path_unchecked`, only along paths with at most
+    that many unrepeated answers). With `true_returns` (per segment id) the stats count
     the labels those returns contradict."""
-    return augment(answers, true_returns)
+    return augment(answers, true_returns, path_unchecked)
 
 
 def make_config(task: str = "walker_walk", scale: str = "small", **settings: Any) -> TrainConfig:
@@ -95,9 +102,7 @@ class JudgeSource:
             two = Segment(segments.features[second], segments.rewards[second], self.obs_dim)
             return self.judge(one, two)
 
-        scheme = get_scheme(request.scheme)
-        record = scheme(len(segments.rewards), request.questions, ask, request.rng, request.chooser)
-        return segments, record
+        return segments, request.run_scheme(ask)
 
 
 def train(

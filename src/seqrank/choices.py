@@ -56,6 +56,11 @@ class RewardSignal(StrEnum):
         return {"learned": "learned", "true": "true-reward", "none": "no-feedback"}[self.value]
 
 
+class Augment(StrEnum):
+    FULL = "full"  # the paper's closure: every answer is trusted and chained
+    CHECKED = "checked"  # noise-aware: re-check big moves, chain few unrepeated answers
+
+
 class Selection(StrEnum):
     UNIFORM = "uniform"
     DISAGREEMENT = "disagreement"

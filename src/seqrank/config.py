@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.choices import (
+    Augment,
     Backbone,
     Device,
     Precision,
@@ -25,6 +26,7 @@ from seqrank.choices import (
     parse_choice,
 )
 from seqrank.envs import canonical_task
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 from seqrank.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
@@ -45,6 +47,7 @@ CHOICES: dict[str, type[Any]] = {
     "path": TrainingPath,
     "precision": Precision,
     "reward": RewardSignal,
+    "augment": Augment,
 }
 
 
@@ -82,6 +85,13 @@ class TrainConfig:
     reward_batch: int = 40
     feedback_frequency: int = 20_000
     segment_length: int = 50
+    # noise-aware augmentation (seqrank.feedback.checking): `checked` asks again an answer
+    # that would imply `recheck_gain` new pairs or more (twice from `recheck_twice_gain`),
+    # and infers only along paths of at most `path_unchecked` unrepeated answers
+    augment: Augment = Augment.FULL
+    recheck_gain: int = 1
+    recheck_twice_gain: int = 20
+    path_unchecked: int = 1
     selection: Selection = Selection.UNIFORM
     oversample: int = 10
     episodes_kept: int = 100
@@ -121,6 +131,13 @@ class TrainConfig:
         return math.ceil(self.max_feedback / self.reward_batch)
 
     @property
+    def recheck(self) -> Recheck | None:
+        """The noise-aware augmentation's settings; None for the paper's closure."""
+        if self.augment is Augment.FULL:
+            return None
+        return Recheck(self.recheck_gain, self.recheck_twice_gain, self.path_unchecked)
+
+    @property
     def first_session_step(self) -> int:
         return self.seed_steps + self.unsup_steps
 
@@ -149,7 +166,14 @@ MAX_SEED = 2**32 - 1
 # settings whose size each feedback session allocates at once: a candidate pool this many
 # times what the scheme needs, and this many held-out segment pairs
 MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
-FROM_ZERO = ("seed", "seed_steps", "unsup_steps", "updates_after_reset", "record_states")
+FROM_ZERO = (
+    "seed",
+    "seed_steps",
+    "unsup_steps",
+    "updates_after_reset",
+    "record_states",
+    "path_unchecked",
+)
 AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
 
 
@@ -205,6 +229,11 @@ def validate(config: TrainConfig) -> None:
         raise ValueError(
             f"knn_k {config.knn_k} must be smaller than seed_steps {config.seed_steps}: "
             "pre-training measures each state's distance to its k-th nearest stored state"
+        )
+    if config.recheck_twice_gain < config.recheck_gain:
+        raise ValueError(
+            f"recheck_twice_gain {config.recheck_twice_gain} is below recheck_gain "
+            f"{config.recheck_gain}: an answer is asked twice more only from a larger gain"
         )
     if config.reward_batch > config.max_feedback:
         raise ValueError(

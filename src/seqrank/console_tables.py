@@ -152,6 +152,7 @@ def print_simulation(out: Console, results: Sequence[CellResult]) -> None:
     for header in (
         "scheme",
         "teacher",
+        "augment",
         "pairs / question",
         "inferred / question",
         "inferred error",
@@ -163,11 +164,13 @@ def print_simulation(out: Console, results: Sequence[CellResult]) -> None:
         "equal",
         "cycles",
     ):
-        table.add_column(header, justify="right" if header not in ("scheme", "teacher") else "left")
+        left = header in ("scheme", "teacher", "augment")
+        table.add_column(header, justify="left" if left else "right")
     for r in results:
         table.add_row(
             r.scheme,
             r.teacher,
+            r.augment,
             _pm(r.pairs_per_question, r.pairs_per_question_se, 3),
             _num(r.inferred_per_question, 3),
             _percent(r.inferred_error_rate),

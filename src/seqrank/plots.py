@@ -15,9 +15,9 @@ from seqrank.simulate import CellResult
 
 def plot_simulation(results: Sequence[CellResult], path: Path) -> None:
     """Grouped bars per teacher: pairs per question, inferred error rate, max degree."""
-    schemes = list(dict.fromkeys(r.scheme for r in results))
+    schemes = list(dict.fromkeys(_series(r) for r in results))
     teachers = list(dict.fromkeys(r.teacher for r in results))
-    by_cell = {(r.scheme, r.teacher): r for r in results}
+    by_cell = {(_series(r), r.teacher): r for r in results}
     panels: list[tuple[str, Callable[[CellResult], float]]] = [
         ("labelled pairs per question", lambda r: r.pairs_per_question),
         ("error rate of inferred pairs", lambda r: r.inferred_error_rate or 0.0),
@@ -39,6 +39,11 @@ def plot_simulation(results: Sequence[CellResult], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _series(result: CellResult) -> str:
+    full = result.augment == "full"
+    return result.scheme if full else f"{result.scheme} ({result.augment})"
 
 
 def plot_curve(curve: Sequence[tuple[int, float]], path: Path, title: str) -> None:

@@ -5,6 +5,8 @@ A segment's per-step rewards are `q * (1 + slope * (t/H - 1/2)) + noise`, clippe
 [0, 1], with quality q = U(0, 1) squared (skewed low, as early in training, so that a skip
 teacher has low-return pairs to skip), slope ~ N(0, 1) and noise ~ N(0, 0.02). The
 within-segment trend is what makes a myopic teacher err.
+With `augment checked` the scheme re-checks answers and the closure limits unrepeated
+answers on a path, with `seqrank train`'s default settings (`Recheck()`).
 The teacher's margin is the mean segment return of the pool (the stand-in for "mean
 return of recent episodes scaled to segment length"). Truth for error rates is the
 undiscounted segment return.
@@ -18,12 +20,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.schemes import get_scheme, uniform_choice
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
 from seqrank.types import Answer
 
 SEGMENT_LENGTH = 50
+AUGMENTS = ("full", "checked")
 
 
 def synthetic_segments(count: int, horizon: int, rng: np.random.Generator) -> np.ndarray:
@@ -41,6 +45,7 @@ class CellResult:
 
     scheme: str
     teacher: str
+    augment: str
     sessions: int
     questions: int
     pairs_per_question: float
@@ -66,6 +71,7 @@ def run_session(
     questions: int,
     rng: np.random.Generator,
     horizon: int = SEGMENT_LENGTH,
+    recheck: Recheck | None = None,
 ) -> AugmentationStats:
     rewards = synthetic_segments(2 * questions, horizon, rng)
     returns = rewards.sum(axis=1)
@@ -74,15 +80,22 @@ def run_session(
     def ask(first: int, second: int) -> Answer:
         return session_teacher.answer(rewards[first], rewards[second], rng)
 
-    record = get_scheme(scheme)(len(rewards), questions, ask, rng, uniform_choice)
-    return augment(record.answers, returns.tolist()).stats
+    record = get_scheme(scheme)(len(rewards), questions, ask, rng, uniform_choice, recheck)
+    path_unchecked = None if recheck is None else recheck.path_unchecked
+    return augment(record.answers, returns.tolist(), path_unchecked).stats
 
 
 def simulate_cell(
-    scheme: str, teacher_name: str, questions: int, sessions: int, rng: np.random.Generator
+    scheme: str,
+    teacher_name: str,
+    questions: int,
+    sessions: int,
+    rng: np.random.Generator,
+    augment_name: str = "full",
 ) -> CellResult:
     teacher = ScriptedTeacher(teacher_preset(teacher_name))
-    stats = [run_session(scheme, teacher, questions, rng) for _ in range(sessions)]
+    recheck = None if augment_name == "full" else Recheck()
+    stats = [run_session(scheme, teacher, questions, rng, recheck=recheck) for _ in range(sessions)]
     ppq = np.array([s.pairs_per_question for s in stats])
     max_deg = np.array([s.max_degree for s in stats], dtype=np.float64)
     inferred = sum(s.inferred for s in stats)
@@ -90,6 +103,7 @@ def simulate_cell(
     return CellResult(
         scheme=scheme,
         teacher=teacher_name,
+        augment=augment_name,
         sessions=sessions,
         questions=questions,
         pairs_per_question=float(ppq.mean()),
@@ -114,16 +128,20 @@ def simulate(
     sessions: int,
     seed: int,
     on_cell: Callable[[CellResult], None] | None = None,
+    augments: Sequence[str] = ("full",),
 ) -> list[CellResult]:
-    """Every (scheme, teacher) cell; each cell has its own stream derived from `seed`."""
+    """Every (scheme, augmentation, teacher) cell. Each (scheme, teacher) has its own
+    stream derived from `seed`, which its augmentations share (common random numbers)."""
     streams = np.random.SeedSequence(seed).spawn(len(schemes) * len(teachers))
     results = []
     cells = [(s, t) for s in schemes for t in teachers]
     for (scheme, teacher), stream in zip(cells, streams, strict=True):
-        cell = simulate_cell(scheme, teacher, questions, sessions, np.random.default_rng(stream))
-        results.append(cell)
-        if on_cell is not None:
-            on_cell(cell)
+        for augment_name in augments:
+            rng = np.random.default_rng(stream)
+            cell = simulate_cell(scheme, teacher, questions, sessions, rng, augment_name)
+            results.append(cell)
+            if on_cell is not None:
+                on_cell(cell)
     return results
 
 

@@ -104,7 +104,7 @@ def perfect_session(
         return Answer.FIRST if values[first] > values[second] else Answer.SECOND
 
     m = len(values)
-    record = get_scheme(scheme)(m, m - 1, ask, rng, choose)
+    record = get_scheme(scheme)(m, m - 1, ask, rng, choose, None)
     return augment(record.answers, values).stats
 
 

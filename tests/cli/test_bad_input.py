@@ -85,6 +85,13 @@ CASES = [
     ([*TRAIN, "--scheme", "tree"], "unknown scheme 'tree'; accepted: pairwise, sequential"),
     ([*TRAIN, "--backbone", "ppo"], "unknown backbone 'ppo'; accepted: pebble, mrn"),
     ([*TRAIN, "--selection", "best"], "unknown selection 'best'; accepted: uniform"),
+    ([*TRAIN, "--augment", "strict"], "unknown augment 'strict'; accepted: full, checked"),
+    ([*TRAIN, "--recheck-gain", "0"], "recheck_gain must be a whole number from 1"),
+    ([*TRAIN, "--path-unchecked", "-1"], "path_unchecked must be a whole number from 0"),
+    (
+        [*TRAIN, "--augment", "checked", "--recheck-gain", "9", "--recheck-twice-gain", "3"],
+        "recheck_twice_gain 3 is below recheck_gain 9",
+    ),
     ([*TRAIN, "--scale", "huge"], "argument --scale: invalid choice: 'huge'"),
     (["train", "--device", "tpu"], "unknown device 'tpu'; accepted: auto, cpu, cuda"),
     ([*TRAIN, "--reward-batch", "500", "--max-feedback", "100"], "exceeds max_feedback 100"),

@@ -123,3 +123,22 @@ def test_recorded_states_let_a_labelled_segment_be_rendered_again(tmp_path):
     assert not (frames[0] == frames[-1]).all()  # the clip moves
     trainer.env.set_state(states[7])
     assert (trainer.env.get_state() == states[7]).all()
+
+
+def test_a_checked_run_asks_big_moves_again_and_stores_each_answer(tmp_path):
+    trainer = run(
+        tmp_path / "checked",
+        tiny_config(
+            scheme="root",
+            teacher="mistake",
+            augment="checked",
+            steps=2000,
+            max_feedback=20,
+            eval_every=2000,
+        ),
+    )
+    asked = trainer.labels.asked
+    assert trainer.counters.asked == len(asked) == 20  # repeats spend the budget
+    pairs = [frozenset((first, second)) for _, _, first, second, _, _ in asked]
+    assert len(set(pairs)) < len(pairs)  # some answer was asked again
+    assert sum(not inferred for inferred in trainer.labels.inferred) == 20  # each answer kept

@@ -14,7 +14,7 @@ from seqrank.cli.options import int_between, names, seed_number
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
-from seqrank.simulate import simulate
+from seqrank.simulate import AUGMENTS, simulate
 
 
 def add_parser(commands: Any) -> None:
@@ -45,6 +45,13 @@ def add_parser(commands: Any) -> None:
         default=list(TEACHER_PRESETS),
         help=f"comma-separated, from: {', '.join(TEACHER_PRESETS)} (default: all)",
     )
+    sim.add_argument(
+        "--augment",
+        type=names(list(AUGMENTS), "augmentation"),
+        default=["full"],
+        help="comma-separated, from: full (the paper's closure), checked (noise-aware: "
+        "re-checks and fewer unrepeated answers per inferred pair) (default: full)",
+    )
     sim.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     sim.add_argument(
         "--out",
@@ -70,7 +77,8 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     with console_tables.progress_bar(err) as progress:
-        task = progress.add_task("simulate", total=len(args.schemes) * len(args.teachers))
+        cells = len(args.schemes) * len(args.teachers) * len(args.augment)
+        task = progress.add_task("simulate", total=cells)
         results = simulate(
             args.schemes,
             args.teachers,
@@ -78,6 +86,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             args.sessions,
             args.seed,
             on_cell=lambda cell: progress.advance(task),
+            augments=args.augment,
         )
     args.out.mkdir(parents=True, exist_ok=True)
     payload = {
@@ -86,6 +95,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "sessions": args.sessions,
             "schemes": args.schemes,
             "teachers": args.teachers,
+            "augment": args.augment,
             "seed": args.seed,
         },
         "results": [cell.as_dict() for cell in results],

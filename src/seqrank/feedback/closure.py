@@ -9,7 +9,15 @@ One pure function serves every scheme (and a whole run, when chains span session
   which only a noisy teacher or a person can create) take part in no inferred pair, so a
   cyclic component adds nothing and no path is routed through it; their asked labels stay;
 - a pair that was asked (with any non-skip answer) is never inferred again: the asked
-  answer wins over the closure.
+  answer wins over the closure;
+- a pair asked more than once (a re-check) is one edge, in the direction of the mean of its
+  answers' labels (none when they cancel out); each answer stays its own training label.
+  The edge is *confirmed* when two or more answers agree and none disagrees.
+
+With `path_unchecked=k` (noise-aware augmentation, `augment checked`) a pair is inferred
+only along a path with at most k unconfirmed edges; None (the paper's closure) trusts every
+edge. One wrong answer then implies wrong pairs only through confirmed edges, which a noisy
+teacher rarely gets wrong twice.
 
 Alongside the pairs come the per-session statistics of SPEC section 3.
 """
@@ -34,6 +42,7 @@ class AugmentationStats:
 
     asked: int
     answered: int
+    answered_pairs: int  # distinct pairs among the answered (re-checks ask a pair again)
     equal: int
     skipped: int
     inferred: int
@@ -52,7 +61,8 @@ class AugmentationStats:
 
     @property
     def pairs_per_question(self) -> float:
-        return self.labelled / self.asked if self.asked else 0.0
+        """Distinct labelled pairs (asked or inferred) per question asked."""
+        return (self.answered_pairs + self.inferred) / self.asked if self.asked else 0.0
 
     @property
     def inferred_error_rate(self) -> float | None:
@@ -68,30 +78,38 @@ class Augmentation:
 
 
 def augment(
-    answers: Iterable[AnsweredQuestion], true_returns: TrueReturns | None = None
+    answers: Iterable[AnsweredQuestion],
+    true_returns: TrueReturns | None = None,
+    path_unchecked: int | None = None,
 ) -> Augmentation:
-    """Asked pairs with their labels plus every pair implied by transitivity."""
+    """Asked pairs with their labels plus every pair implied by transitivity (along paths
+    of at most `path_unchecked` unconfirmed edges, when given)."""
     answers = list(answers)
     asked_pairs = [
         LabelledPair(a.first, a.second, label, inferred=False)
         for a in answers
         if (label := a.answer.label) is not None
     ]
-    edges = [_winner_loser(a) for a in answers if a.answer in (Answer.FIRST, Answer.SECOND)]
-    components = _strongly_connected(edges)
+    votes = _votes(answers)
+    confirmed, single = _majority_edges(votes)
+    components = _strongly_connected(confirmed + single)
     cyclic = [c for c in components if len(c) > 1]
     cyclic_nodes = {node for c in cyclic for node in c}
-    asked_keys = {frozenset((p.first, p.second)) for p in asked_pairs}
+    if path_unchecked is None:
+        implied = _implied(confirmed + single, cyclic_nodes)
+    else:
+        implied = _implied_trusted(confirmed, single, cyclic_nodes, path_unchecked)
     inferred = [
         LabelledPair(winner, loser, LABEL_FIRST, inferred=True)
-        for winner, loser in _implied(edges, cyclic_nodes)
-        if frozenset((winner, loser)) not in asked_keys
+        for winner, loser in implied
+        if _key(winner, loser) not in votes
     ]
     pairs = tuple(asked_pairs + inferred)
     max_degree, mean_degree = dependency_degrees(pairs)
     stats = AugmentationStats(
         asked=len(answers),
         answered=len(asked_pairs),
+        answered_pairs=len(votes),
         equal=sum(a.answer is Answer.EQUAL for a in answers),
         skipped=sum(a.answer is Answer.SKIP for a in answers),
         inferred=len(inferred),
@@ -106,6 +124,40 @@ def augment(
     return Augmentation(pairs, stats)
 
 
+def _key(a: int, b: int) -> tuple[int, int]:
+    return (a, b) if a < b else (b, a)
+
+
+def _votes(answers: Sequence[AnsweredQuestion]) -> dict[tuple[int, int], list[float]]:
+    """Each answered pair's labels, oriented to its smaller segment id first."""
+    votes: dict[tuple[int, int], list[float]] = {}
+    for a in answers:
+        label = a.answer.label
+        if label is None:
+            continue
+        key = _key(a.first, a.second)
+        votes.setdefault(key, []).append(label if a.first == key[0] else 1.0 - label)
+    return votes
+
+
+Edges = list[tuple[int, int]]
+
+
+def _majority_edges(votes: Mapping[tuple[int, int], list[float]]) -> tuple[Edges, Edges]:
+    """(confirmed, unconfirmed) winner-loser edges: one per pair whose mean label is not
+    1/2; confirmed when two or more answers agree and none disagrees."""
+    confirmed: Edges = []
+    single: Edges = []
+    for (a, b), labels in votes.items():
+        mean = sum(labels) / len(labels)
+        if mean == 0.5:
+            continue
+        edge = (a, b) if mean > 0.5 else (b, a)
+        unanimous = len(labels) > 1 and len(set(labels)) == 1
+        (confirmed if unanimous else single).append(edge)
+    return confirmed, single
+
+
 def dependency_degrees(pairs: Iterable[LabelledPair]) -> tuple[int, float]:
     """Max and mean degree of the dependency graph of labelled pairs.
 
@@ -118,12 +170,6 @@ def dependency_degrees(pairs: Iterable[LabelledPair]) -> tuple[int, float]:
     per_segment = Counter(segment for pair in unique for segment in pair)
     degrees = [sum(per_segment[s] for s in pair) - 2 for pair in unique]
     return max(degrees), sum(degrees) / len(degrees)
-
-
-def _winner_loser(answered: AnsweredQuestion) -> tuple[int, int]:
-    if answered.answer is Answer.FIRST:
-        return answered.first, answered.second
-    return answered.second, answered.first
 
 
 def _count_wrong(pairs: Sequence[LabelledPair], true_returns: TrueReturns | None) -> int | None:
@@ -185,17 +231,67 @@ def _strongly_connected(edges: Sequence[tuple[int, int]]) -> list[list[int]]:
 
 
 def _implied(edges: Sequence[tuple[int, int]], excluded: set[int]) -> list[tuple[int, int]]:
-    """All (winner, loser) pairs joined by a path of edges avoiding `excluded` segments.
+    """All (winner, loser) pairs joined by a path of edges avoiding `excluded` segments."""
+    kept = [(w, lo) for w, lo in edges if w not in excluded and lo not in excluded]
+    nodes = sorted({n for edge in kept for n in edge})
+    return _listed(nodes, _reach(nodes, kept))
+
+
+def _implied_trusted(
+    confirmed: Edges, single: Edges, excluded: set[int], path_unchecked: int
+) -> list[tuple[int, int]]:
+    """Pairs joined by a path with at most `path_unchecked` unconfirmed edges.
+
+    With C the confirmed reachability (reflexive) and S one unconfirmed edge, the pairs
+    reachable with k unconfirmed edges are C (S C)^k: a level's set grows by one
+    S-then-C step from each of its members, `path_unchecked` times.
+    """
+    confirmed = [(w, lo) for w, lo in confirmed if w not in excluded and lo not in excluded]
+    single = [(w, lo) for w, lo in single if w not in excluded and lo not in excluded]
+    nodes = sorted({n for edge in confirmed + single for n in edge})
+    position = {node: i for i, node in enumerate(nodes)}
+    closed = [bits | (1 << i) for i, bits in enumerate(_reach(nodes, confirmed))]
+    after_single = [0] * len(nodes)  # one unconfirmed edge, then confirmed ones
+    for winner, loser in single:
+        after_single[position[winner]] |= closed[position[loser]]
+    reach = []
+    for i in range(len(nodes)):
+        level = closed[i]
+        for _ in range(path_unchecked):
+            grown = level
+            for j in _members(level):
+                grown |= after_single[j]
+            if grown == level:
+                break
+            level = grown
+        reach.append(level & ~(1 << i))
+    return _listed(nodes, reach)
+
+
+def _members(bits: int) -> list[int]:
+    found = []
+    while bits:
+        low = bits & -bits
+        found.append(low.bit_length() - 1)
+        bits ^= low
+    return found
+
+
+def _listed(nodes: Sequence[int], reach: Sequence[int]) -> list[tuple[int, int]]:
+    return [(nodes[i], nodes[j]) for i, bits in enumerate(reach) for j in _members(bits)]
+
+
+def _reach(nodes: Sequence[int], edges: Sequence[tuple[int, int]]) -> list[int]:
+    """Per node (by position in `nodes`), the bitset of nodes reachable along `edges`
+    (which must form no cycle).
 
     Reachability sets are Python integers used as bitsets, filled in reverse topological
     order, so the cost is about (segments x segments / 64) word operations.
     """
-    kept = [(w, lo) for w, lo in edges if w not in excluded and lo not in excluded]
-    nodes = sorted({n for edge in kept for n in edge})
     position = {node: i for i, node in enumerate(nodes)}
     successors: list[set[int]] = [set() for _ in nodes]
     indegree = [0] * len(nodes)
-    for winner, loser in kept:
+    for winner, loser in edges:
         w, lo = position[winner], position[loser]
         if lo not in successors[w]:
             successors[w].add(lo)
@@ -212,10 +308,4 @@ def _implied(edges: Sequence[tuple[int, int]], excluded: set[int]) -> list[tuple
         for j in successors[i]:
             bits |= reach[j] | (1 << j)
         reach[i] = bits
-    implied = []
-    for i, bits in enumerate(reach):
-        while bits:
-            low = bits & -bits
-            implied.append((nodes[i], nodes[low.bit_length() - 1]))
-            bits ^= low
-    return implied
+    return reach

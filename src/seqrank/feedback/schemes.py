@@ -11,6 +11,9 @@ Choices this module makes (SPEC section 3 "decide"):
   closes the monotone chain, because the closure never chains ties); root keeps its root.
 - skipped answers add no edge: sequential moves on to the challenger (the chain breaks);
   root keeps its root and the challenger is dropped; ranked drops the segment.
+- with a `Recheck` (noise-aware augmentation, `seqrank.feedback.checking`) an answer that
+  would imply many pairs is asked again within the budget; the scheme sees it only when
+  the repeats agree, and treats it as skipped otherwise;
 - the defender is always `first` in a question; showing sides to a person (randomised and
   mapped back) is the labelling page's job, not the scheme's.
 - `ranked` inserts each new segment into a ranked list of groups of equally preferred
@@ -29,6 +32,7 @@ from typing import Protocol
 import numpy as np
 
 from seqrank.choices import parse_choice
+from seqrank.feedback.checking import Recheck, confirmed_answer
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 Ask = Callable[[int, int], Answer]
@@ -74,11 +78,24 @@ class SessionRecord:
 class _Session:
     """Bookkeeping shared by the schemes: drawing segments, asking, recording."""
 
-    def __init__(self, pool_size: int, ask: Ask, rng: np.random.Generator, choose: Chooser):
+    def __init__(
+        self,
+        pool_size: int,
+        budget: int,
+        ask: Ask,
+        rng: np.random.Generator,
+        choose: Chooser,
+        recheck: Recheck | None,
+    ):
         self.available = list(range(pool_size))
         self.drawn: list[int] = []
         self.answers: list[AnsweredQuestion] = []
+        self.budget, self.recheck = budget, recheck
         self._ask, self._rng, self._choose = ask, rng, choose
+
+    @property
+    def budget_left(self) -> int:
+        return self.budget - len(self.answers)
 
     def draw(self, defender: int | None) -> int:
         position = self._choose(defender, self.available, self._rng)
@@ -87,10 +104,18 @@ class _Session:
         return segment
 
     def ask(self, first: int, second: int, first_is_defender: bool) -> Answer:
-        question = Question(len(self.answers), first, second, first_is_defender)
-        answer = self._ask(first, second)
-        self.answers.append(AnsweredQuestion(question, answer))
-        return answer
+        """The answer the scheme acts on (a re-checked one when a `Recheck` is set)."""
+
+        def ask_once() -> Answer:
+            question = Question(len(self.answers), first, second, first_is_defender)
+            answer = self._ask(first, second)
+            self.answers.append(AnsweredQuestion(question, answer))
+            return answer
+
+        answer = ask_once()
+        if self.recheck is None:
+            return answer
+        return confirmed_answer(self.answers, self.recheck, ask_once, lambda: self.budget_left)
 
     def record(self, scheme: str) -> SessionRecord:
         return SessionRecord(scheme, tuple(self.answers), tuple(self.drawn))
@@ -102,11 +127,12 @@ def pairwise(
     ask: Ask,
     rng: np.random.Generator,
     choose: Chooser = uniform_choice,
+    recheck: Recheck | None = None,
 ) -> SessionRecord:
     """The baseline: `budget` disjoint pairs of 2 * budget distinct segments."""
     _check_pool("pairwise", pool_size, budget)
-    session = _Session(pool_size, ask, rng, choose)
-    for _ in range(budget):
+    session = _Session(pool_size, budget, ask, rng, choose, recheck)
+    while session.budget_left > 0:
         first = session.draw(None)
         second = session.draw(first)
         session.ask(first, second, first_is_defender=False)
@@ -119,12 +145,13 @@ def sequential(
     ask: Ask,
     rng: np.random.Generator,
     choose: Chooser = uniform_choice,
+    recheck: Recheck | None = None,
 ) -> SessionRecord:
     """Sequential pairwise (Algorithm 1): each challenger meets the previous segment."""
     _check_pool("sequential", pool_size, budget)
-    session = _Session(pool_size, ask, rng, choose)
+    session = _Session(pool_size, budget, ask, rng, choose, recheck)
     defender = session.draw(None)
-    for _ in range(budget):
+    while session.budget_left > 0:
         challenger = session.draw(defender)
         session.ask(defender, challenger, first_is_defender=True)
         defender = challenger
@@ -137,12 +164,13 @@ def root(
     ask: Ask,
     rng: np.random.Generator,
     choose: Chooser = uniform_choice,
+    recheck: Recheck | None = None,
 ) -> SessionRecord:
     """Root pairwise (Algorithm 2): each challenger meets the most preferred so far."""
     _check_pool("root", pool_size, budget)
-    session = _Session(pool_size, ask, rng, choose)
+    session = _Session(pool_size, budget, ask, rng, choose, recheck)
     current_root = session.draw(None)
-    for _ in range(budget):
+    while session.budget_left > 0:
         challenger = session.draw(current_root)
         if session.ask(current_root, challenger, first_is_defender=True) is Answer.SECOND:
             current_root = challenger
@@ -155,21 +183,22 @@ def ranked(
     ask: Ask,
     rng: np.random.Generator,
     choose: Chooser = uniform_choice,
+    recheck: Recheck | None = None,
 ) -> SessionRecord:
     """Binary insertion into a ranked list of groups of equally preferred segments."""
     _check_pool("ranked", pool_size, budget)
-    session = _Session(pool_size, ask, rng, choose)
+    session = _Session(pool_size, budget, ask, rng, choose, recheck)
     groups: list[list[int]] = [[session.draw(None)]]  # worst group first
-    while len(session.answers) < budget and session.available:
+    while session.budget_left > 0 and session.available:
         newcomer = session.draw(None)
-        _insert(session, groups, newcomer, budget)
+        _insert(session, groups, newcomer)
     return session.record("ranked")
 
 
-def _insert(session: _Session, groups: list[list[int]], newcomer: int, budget: int) -> None:
+def _insert(session: _Session, groups: list[list[int]], newcomer: int) -> None:
     low, high = 0, len(groups)
     while low < high:
-        if len(session.answers) >= budget:
+        if session.budget_left <= 0:
             return
         middle = (low + high) // 2
         founder = groups[middle][0]
@@ -186,7 +215,7 @@ def _insert(session: _Session, groups: list[list[int]], newcomer: int, budget: i
     groups.insert(low, [newcomer])
 
 
-Scheme = Callable[[int, int, Ask, np.random.Generator, Chooser], SessionRecord]
+Scheme = Callable[[int, int, Ask, np.random.Generator, Chooser, Recheck | None], SessionRecord]
 
 SCHEMES: dict[str, Scheme] = {
     "pairwise": pairwise,

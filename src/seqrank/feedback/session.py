@@ -15,9 +15,10 @@ from typing import Protocol
 import numpy as np
 
 from seqrank.episodes import EpisodeStore, Segments
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import Chooser, SessionRecord, get_scheme, segments_needed
+from seqrank.feedback.schemes import Ask, Chooser, SessionRecord, get_scheme, segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.teachers import ScriptedTeacher
 from seqrank.reward.model import RewardModel
@@ -35,6 +36,17 @@ class SessionRequest:
     chooser: Chooser
     rng: np.random.Generator
     margin: float  # the scripted teachers' equal-preference margin for this session
+    recheck: Recheck | None = None  # noise-aware augmentation (`augment checked`)
+
+    def run_scheme(self, ask: Ask) -> SessionRecord:
+        """The session's scheme over its pool, asking `ask`."""
+        scheme = get_scheme(self.scheme)
+        pool = len(self.segments.rewards)
+        return scheme(pool, self.questions, ask, self.rng, self.chooser, self.recheck)
+
+    @property
+    def path_unchecked(self) -> int | None:
+        return None if self.recheck is None else self.recheck.path_unchecked
 
 
 class FeedbackSource(Protocol):
@@ -74,9 +86,7 @@ class ScriptedSource:
         def ask(first: int, second: int) -> Answer:
             return teacher.answer(rewards[first], rewards[second], rng)
 
-        pool = len(rewards)
-        record = get_scheme(request.scheme)(pool, request.questions, ask, rng, request.chooser)
-        return request.segments, record
+        return request.segments, request.run_scheme(ask)
 
 
 @dataclass(frozen=True)
@@ -87,6 +97,7 @@ class SessionPlan:
     selection: str  # uniform, disagreement or entropy (after the first session)
     oversample: int  # candidate pool = this x what the scheme needs, for informative picks
     segment_length: int
+    recheck: Recheck | None = None
 
 
 @dataclass(frozen=True)
@@ -116,14 +127,21 @@ def prepare_session(
     sampled = episodes.sample_segments(pool, plan.segment_length, rng)
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
-    return SessionRequest(plan.scheme, questions, session, sampled, chooser, rng, margin)
+    return SessionRequest(
+        plan.scheme, questions, session, sampled, chooser, rng, margin, plan.recheck
+    )
 
 
 def store_session(
-    segments: Segments, record: SessionRecord, labels: LabelStore, session: int
+    segments: Segments,
+    record: SessionRecord,
+    labels: LabelStore,
+    session: int,
+    path_unchecked: int | None = None,
 ) -> SessionOutcome:
-    """Augment the answers by transitivity and store asked and inferred pairs."""
+    """Augment the answers by transitivity (along paths of at most `path_unchecked`
+    unrepeated answers, when given) and store asked and inferred pairs."""
     true_returns = segments.rewards.sum(axis=1)
-    augmentation = augment(record.answers, true_returns.tolist())
+    augmentation = augment(record.answers, true_returns.tolist(), path_unchecked)
     labels.add_session(segments, true_returns, record.segments, augmentation, session, record)
     return SessionOutcome(augmentation.stats, len(record.segments))

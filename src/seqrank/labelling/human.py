@@ -103,6 +103,7 @@ class HumanSource:
             page_session.ask,
             np.random.default_rng(page_session.seed),
             page_session.choose,
+            request.recheck,
         )
         return pool, record
 

@@ -133,7 +133,10 @@ def finish_session(t: Trainer, answered: AnsweredSession | None) -> None:
 def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
     config, c = t.config, t.counters
     first = answered.request.session == 0
-    outcome = store_session(answered.segments, answered.record, t.labels, answered.request.session)
+    request = answered.request
+    outcome = store_session(
+        answered.segments, answered.record, t.labels, request.session, request.path_unchecked
+    )
     metrics.count_session(c, outcome.stats)
     result = t.reward.train()
     t.reward.relabel()

@@ -135,6 +135,7 @@ class Trainer:
                 config.selection.value,
                 config.oversample,
                 config.segment_length,
+                config.recheck,
             ),
             self.source,
             self.episodes,

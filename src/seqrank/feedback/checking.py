@@ -1,0 +1,68 @@
+"""Noise-aware augmentation (`augment checked`): re-check the answers that would move much.
+
+With a perfect teacher every answer can be chained; with a noisy one, a single wrong answer
+that the closure chains (root's challenger wrongly beating the root places it above the
+whole tree) turns into many wrong labels. Two parts work together:
+
+- in the session, an answer whose transitive closure would add at least `gain` new pairs
+  is asked again (once, or twice from `twice_gain` pairs on); it stands only if every
+  repeat agrees, otherwise the scheme treats the question as skipped and the closure sees
+  a pair whose answers disagree (no edge, or an unconfirmed one);
+- in the closure, a pair is inferred only along a path with at most `path_unchecked`
+  edges that rest on one unrepeated answer (`augment(..., path_unchecked=...)`).
+
+Each repeat spends a question of the session's budget, which is what it trades: with the
+oracle teacher root keeps about 1.8 pairs per question instead of 1.9, while under B-Pref's
+`mistake` teacher (10% flipped answers) inferred labels go from about 3 times to fewer than
+the teacher's own errors (`seqrank simulate --augment full,checked`). Repeats assume a
+teacher's errors on the same pair are independent, as in B-Pref's scripted teachers; a
+person who misjudges a pair may misjudge it again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from seqrank.feedback.closure import augment
+from seqrank.types import Answer, AnsweredQuestion
+
+
+@dataclass(frozen=True)
+class Recheck:
+    gain: int = 1  # re-ask an answer that would imply at least this many new pairs
+    twice_gain: int = 20  # ... twice from this many on
+    path_unchecked: int = 1  # unconfirmed edges allowed on an inference path
+
+    def __post_init__(self) -> None:
+        if self.gain < 1 or self.twice_gain < self.gain or self.path_unchecked < 0:
+            raise ValueError(
+                f"recheck settings gain {self.gain}, twice_gain {self.twice_gain}, "
+                f"path_unchecked {self.path_unchecked}: need 1 <= gain <= twice_gain "
+                "and path_unchecked >= 0"
+            )
+
+    def repeats(self, answers: Sequence[AnsweredQuestion]) -> int:
+        """How many more times to ask the last of `answers`: by how many new pairs the
+        paper's closure would infer if it were trusted."""
+        if answers[-1].answer not in (Answer.FIRST, Answer.SECOND):
+            return 0
+        gain = augment(answers).stats.inferred - augment(answers[:-1]).stats.inferred
+        return 0 if gain < self.gain else 1 if gain < self.twice_gain else 2
+
+
+def confirmed_answer(
+    answers: list[AnsweredQuestion],
+    recheck: Recheck,
+    ask_again: Callable[[], Answer],
+    budget_left: Callable[[], int],
+) -> Answer:
+    """The last answer if its repeats (asked while budget is left) all agree with it;
+    SKIP when one disagrees. Repeats are appended to `answers` by `ask_again`."""
+    first = answers[-1].answer
+    for _ in range(recheck.repeats(answers)):
+        if budget_left() <= 0:
+            break
+        if ask_again() is not first:
+            return Answer.SKIP
+    return first
