@@ -35,6 +35,8 @@ class SessionRequest:
     chooser: Chooser
     rng: np.random.Generator
     margin: float  # the scripted teachers' equal-preference margin for this session
+    # with `query_episodes`: the numbers of the first and last episode the pool is cut from
+    episodes: tuple[int, int] | None = None
 
 
 class FeedbackSource(Protocol):
@@ -87,6 +89,7 @@ class SessionPlan:
     selection: str  # uniform, disagreement or entropy (after the first session)
     oversample: int  # candidate pool = this x what the scheme needs, for informative picks
     segment_length: int
+    query_episodes: int = 0  # QPA: cut the pool from the last N episodes only (0: all kept)
 
 
 @dataclass(frozen=True)
@@ -109,14 +112,22 @@ def prepare_session(
 
     With an informative selection (after the first session) the candidate pool is
     `oversample` times what the scheme needs, and the chooser picks among it.
+
+    QPA's policy-aligned query selection (Hu et al., ICLR 2024, section 5.1) is where the
+    pool comes from, whatever the selection and scheme: with `query_episodes` N, only the
+    last N episodes, those of the current policy. QPA kept 10 on DMControl
+    (`max_reward_buffer_size=10` in `run_QPA.sh` of github.com/huxiao09/QPA; 30 or 60 on
+    Meta-World) where PEBBLE keeps 100; 0 (the default) keeps PEBBLE's behaviour.
     """
     needed = segments_needed(plan.scheme, questions)
     use_model = informative and plan.selection != "uniform"
     pool = needed * (plan.oversample if use_model else 1)
-    sampled = episodes.sample_segments(pool, plan.segment_length, rng)
+    last = plan.query_episodes
+    sampled = episodes.sample_segments(pool, plan.segment_length, rng, last)
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
-    return SessionRequest(plan.scheme, questions, session, sampled, chooser, rng, margin)
+    window = episodes.window(last) if last else None
+    return SessionRequest(plan.scheme, questions, session, sampled, chooser, rng, margin, window)
 
 
 def store_session(

@@ -135,6 +135,7 @@ class Trainer:
                 config.selection.value,
                 config.oversample,
                 config.segment_length,
+                config.query_episodes,
             ),
             self.source,
             self.episodes,
@@ -155,6 +156,7 @@ class Trainer:
             self.counters.extra.__setitem__,
             env.obs_dim,
             self.generator,
+            env.episode_length,
         )
         self.update = BACKBONES[config.backbone](config, parts)
         self.evaluations = self._evaluations()
