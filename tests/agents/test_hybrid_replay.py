@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from seqrank.agents.dqn import DQN, DQNSettings, EpsilonSchedule
 from seqrank.agents.hybrid_replay import HybridReplay
 from seqrank.agents.sac import SAC, Execution, SACSettings
 from seqrank.buffer import Batch, BatchSource, ReplayBuffer
@@ -162,3 +163,12 @@ def test_hybrid_batches_while_feedback_is_open_then_uniform_ones():
     assert extra == {"hybrid_recent_share": 0.5, "hybrid_window": 30.0}
     update(2, False)  # the budget is spent: QPA goes back to uniform batches
     assert spy.sources[1] is replay and extra["hybrid_recent_share"] == 0.0
+
+
+def test_dqn_updates_from_hybrid_batches_too():
+    """block:place learns with DQN; it samples through the same `BatchSource`."""
+    settings = DQNSettings(16, 2, 1e-3, 0.99, 0.005, 2, EpsilonSchedule())
+    agent = DQN(OBS, ACT, settings, torch.device("cpu"))
+    source = Recording(numbered_buffer(400, 300), 0.25, 10)
+    agent.update_from(source, 40, _gen(0))
+    assert agent.updates == 1 and set(numbers(source.given[0])[30:]) <= set(range(290, 300))

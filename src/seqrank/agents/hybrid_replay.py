@@ -1,5 +1,5 @@
 """QPA's hybrid experience replay (Hu et al., "Query-Policy Misalignment in Preference-Based
-Reinforcement Learning", ICLR 2024, section 5.2): while feedback is still being asked for,
+Reinforcement Learning", ICLR 2024): while feedback is still being asked for,
 each agent batch takes a fixed share of its rows from the most recent transitions (those
 of the current policy, which the policy-aligned queries also come from) and the rest
 uniformly from the whole replay buffer, so the critic is fitted where the learned reward

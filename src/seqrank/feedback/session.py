@@ -113,7 +113,7 @@ def prepare_session(
     With an informative selection (after the first session) the candidate pool is
     `oversample` times what the scheme needs, and the chooser picks among it.
 
-    QPA's policy-aligned query selection (Hu et al., ICLR 2024, section 5.1) is where the
+    QPA's policy-aligned query selection (Hu et al., ICLR 2024) is where the
     pool comes from, whatever the selection and scheme: with `query_episodes` N, only the
     last N episodes, those of the current policy. QPA kept 10 on DMControl
     (`max_reward_buffer_size=10` in `run_QPA.sh` of github.com/huxiao09/QPA; 30 or 60 on
