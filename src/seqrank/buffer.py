@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -26,6 +26,24 @@ class Batch:
     not_done: torch.Tensor  # 0 only at true terminals; time limits are not terminal
 
 
+class BatchSource(Protocol):
+    """Where an agent's hot-loop update draws its batch: the replay buffer itself, or a
+    view of it that mixes in recent transitions (`agents.hybrid_replay`)."""
+
+    @property
+    def storage(self) -> torch.device:
+        """Where the transitions live (a captured update needs the training device)."""
+        ...
+
+    def sample(self, batch_size: int, generator: torch.Generator) -> Batch:
+        """A batch, its indices drawn from the host generator."""
+        ...
+
+    def sample_on_device(self, batch_size: int) -> Batch:
+        """A batch, its indices drawn where the table lives (capturable in a CUDA graph)."""
+        ...
+
+
 STAGING_ROWS = 16  # pinned host rows the fast path's adds cycle through
 COLUMNS = ("obs", "action", "next_obs", "true_reward", "reward", "not_done")
 
@@ -36,8 +54,8 @@ class ReplayBuffer:
 
     `storage` is where the table lives: the host for the reference path (each batch is
     then copied to `device`, as the field's research code does), the device for the fast
-    path. `size_t` mirrors the size on the storage device, so sampling can run inside a
-    CUDA graph without reading it back.
+    path. `size_t` and `index_t` mirror the size and the write index on the storage
+    device, so sampling can run inside a CUDA graph without reading them back.
     """
 
     @staticmethod
@@ -77,6 +95,7 @@ class ReplayBuffer:
         self.reward: torch.Tensor
         self.not_done: torch.Tensor
         self.size_t = torch.zeros((), dtype=torch.float32, device=self.storage)
+        self.index_t = torch.zeros((), dtype=torch.long, device=self.storage)
         self.index, self.size = 0, 0
         self._staging: torch.Tensor | None = None
         self._staging_events: dict[int, Any] = {}
@@ -153,6 +172,7 @@ class ReplayBuffer:
         self.index = (self.index + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
         self.size_t.fill_(self.size)
+        self.index_t.fill_(self.index)
 
     def _batch(self, rows: torch.Tensor) -> Batch:
         cols = self.columns
@@ -166,7 +186,10 @@ class ReplayBuffer:
 
     def sample(self, batch_size: int, generator: torch.Generator) -> Batch:
         """Indices from the host generator; the reference path copies the batch to `device`."""
-        idx = torch.randint(0, self.size, (batch_size,), generator=generator)
+        return self.gather(torch.randint(0, self.size, (batch_size,), generator=generator))
+
+    def gather(self, idx: torch.Tensor) -> Batch:
+        """The rows at `idx` as a batch on the training device."""
         return self._batch(self.table[idx.to(self.storage)].to(self.device))
 
     def sample_on_device(self, batch_size: int) -> Batch:
@@ -199,3 +222,4 @@ class ReplayBuffer:
             getattr(self, name)[:n] = state[name].to(self.storage)
         self.index, self.size = state["index"], n
         self.size_t.fill_(n)
+        self.index_t.fill_(self.index)

@@ -95,6 +95,13 @@ class TrainConfig:
     selection: Selection = Selection.UNIFORM
     oversample: int = 10
     episodes_kept: int = 100
+    # query-policy alignment (QPA)
+    # Hu et al., ICLR 2024; off by default. Their values: query_episodes 10 (DMControl),
+    # hybrid_replay 0.5, hybrid_episodes 10 (sources: `feedback/session.py`,
+    # `agents/hybrid_replay.py`)
+    query_episodes: int = 0  # 0: segments from every kept episode; N: from the last N only
+    hybrid_replay: float = 0.0  # share of each agent batch from recent transitions; 0: off
+    hybrid_episodes: int = 10  # hybrid replay's recent window, in episodes of the task
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
     # buffer and episodes to start from, and what the sessions' clips show (`FINETUNE_PARTS`)
@@ -173,8 +180,10 @@ FROM_ZERO = (
     "updates_after_reset",
     "record_states",
     "path_unchecked",
+    "query_episodes",
+    "hybrid_replay",
 )
-AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
+AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy", "hybrid_replay")
 
 
 def check_setting(name: str, value: Any) -> None:
@@ -190,9 +199,11 @@ def check_setting(name: str, value: Any) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{name} must be a number, got {value!r}")
-    unit = name in AT_MOST_ONE
-    if not math.isfinite(value) or value <= 0 or (unit and value > 1):
-        accepted = "a number in (0, 1]" if unit else "a finite number > 0"
+    unit, zero = name in AT_MOST_ONE, name in FROM_ZERO
+    too_low = value < 0 or (value == 0 and not zero)
+    if not math.isfinite(value) or too_low or (unit and value > 1):
+        opening = "[0" if zero else "(0"
+        accepted = f"a number in {opening}, 1]" if unit else "a finite number > 0"
         raise ValueError(f"{name} must be {accepted}, got {value}")
 
 
@@ -243,6 +254,35 @@ def validate(config: TrainConfig) -> None:
     if config.reward.asks:
         _check_budget(config)
     _check_fine_tuning(config)
+    _check_qpa(config)
+
+
+def _check_qpa(config: TrainConfig) -> None:
+    """Query-policy alignment narrows where new segments are cut and what agent batches
+    hold while feedback is asked for: it needs new segments, and questions."""
+    n = config.query_episodes
+    if n > config.episodes_kept:
+        raise ValueError(
+            f"query_episodes {n} exceeds episodes_kept {config.episodes_kept}: segments are "
+            f"cut from the last query_episodes of the kept episodes; accepted: 0 (all) to "
+            f"{config.episodes_kept}"
+        )
+    if not config.reward.asks and (n or config.hybrid_replay):
+        raise ValueError(
+            f"query_episodes and hybrid_replay act while feedback is asked for; reward "
+            f"'{config.reward}' asks none: leave them out"
+        )
+    if n and config.teacher_spec.kind == "replay":
+        raise ValueError(
+            f"teacher '{config.teacher}' replays recorded segments; query_episodes chooses "
+            "where new segments are cut: leave it out (hybrid_replay works with replay)"
+        )
+    if n and config.parts:
+        raise ValueError(
+            f"parts {config.parts!r} replaces a session's episodes with fresh ones of the "
+            "current policy (aligned already, one per skill level); query_episodes would "
+            "drop some: leave it out"
+        )
 
 
 # what the clips of a session show, in session order (the study's instructions: first

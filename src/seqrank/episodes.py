@@ -29,28 +29,41 @@ class Segments:
 
 
 class EpisodeStore:
-    """The last `keep` complete episodes; feedback segments are cut from them."""
+    """The last `keep` complete episodes; feedback segments are cut from them. `added`
+    counts every episode ever added, so the stored ones are numbers `added - len` to
+    `added - 1`."""
 
     def __init__(self, keep: int):
         self.episodes: deque[Episode] = deque(maxlen=keep)
+        self.added = 0
 
     def __len__(self) -> int:
         return len(self.episodes)
 
     def add(self, episode: Episode) -> None:
         self.episodes.append(episode)
+        self.added += 1
+
+    def window(self, last: int = 0) -> tuple[int, int]:
+        """The numbers of the first and last episode that `sample_segments(..., last)`
+        cuts from: the last `last` stored (all of them for 0)."""
+        held = len(self.episodes) if last == 0 else min(last, len(self.episodes))
+        return self.added - held, self.added - 1
 
     def recent_returns(self, count: int) -> np.ndarray:
         return np.array([e.reward.sum() for e in list(self.episodes)[-count:]])
 
-    def sample_segments(self, count: int, length: int, rng: np.random.Generator) -> Segments:
-        """`count` segments cut at a uniform episode and a uniform start.
+    def sample_segments(
+        self, count: int, length: int, rng: np.random.Generator, last: int = 0
+    ) -> Segments:
+        """`count` segments cut at a uniform episode and a uniform start; with `last`, a
+        uniform episode of the last `last` stored (QPA's policy-aligned queries).
 
         An episode shorter than `length` (a Gymnasium task that ended in a terminal state)
         gives its whole self, padded with its last step repeated at zero true reward: what
         an absorbing terminal state would show.
         """
-        episodes = list(self.episodes)
+        episodes = list(self.episodes)[-last:] if last else list(self.episodes)
         which = rng.integers(len(episodes), size=count)
         features, rewards, states, contexts = [], [], [], []
         for e in which:
@@ -71,10 +84,11 @@ class EpisodeStore:
         return Segments(np.stack(features).astype(np.float32), np.stack(rewards), states, contexts)
 
     def state_dict(self) -> dict[str, Any]:
-        return {"keep": self.episodes.maxlen, "episodes": list(self.episodes)}
+        return {"keep": self.episodes.maxlen, "episodes": list(self.episodes), "added": self.added}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.episodes = deque(state["episodes"], maxlen=state["keep"])
+        self.added = state.get("added", len(self.episodes))  # (older checkpoints: unknown)
 
 
 def _pad(rows: np.ndarray, length: int) -> np.ndarray:

@@ -19,7 +19,7 @@ import torch.nn.functional as F
 
 from seqrank.agents.networks import mlp
 from seqrank.agents.sac import descend, soft_update
-from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.buffer import Batch, BatchSource
 
 
 @dataclass(frozen=True)
@@ -81,9 +81,7 @@ class DQN:
         obs_t = torch.as_tensor(obs, dtype=torch.float32, device=self.device).unsqueeze(0)
         return _one_hot(int(self.q(obs_t).argmax(dim=-1)), self.actions)
 
-    def update_from(
-        self, replay: ReplayBuffer, batch_size: int, generator: torch.Generator
-    ) -> None:
+    def update_from(self, replay: BatchSource, batch_size: int, generator: torch.Generator) -> None:
         self.update(replay.sample(batch_size, generator), generator)
 
     def update(self, batch: Batch, generator: torch.Generator) -> None:

@@ -16,7 +16,7 @@ import torch.nn.functional as F
 from torch.func import functional_call
 
 from seqrank.agents.sac import SAC, critic_loss
-from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.buffer import Batch, BatchSource, ReplayBuffer
 from seqrank.reward.model import RewardModel
 
 
@@ -84,7 +84,8 @@ class MetaSettings:
 class MetaRewardUpdate:
     """MRN's agent update: every `every` steps while feedback is still being asked for,
     a meta reward step, then the agent's update on the batch under the new reward and a
-    relabelled buffer; otherwise the agent's own update."""
+    relabelled buffer; otherwise the agent's own update. Batches come from `hybrid`
+    (QPA's hybrid replay) while feedback is asked for, when given, else from `replay`."""
 
     def __init__(
         self,
@@ -96,18 +97,20 @@ class MetaRewardUpdate:
         relabel: Callable[[], None],
         generator: torch.Generator,
         record: Callable[[str, float], None],
+        hybrid: BatchSource | None = None,
     ):
         self.agent, self.reward_model, self.replay = agent, reward_model, replay
         self.settings, self.recent_pairs, self.relabel = settings, recent_pairs, relabel
-        self.generator, self.record = generator, record
+        self.generator, self.record, self.hybrid = generator, record, hybrid
 
     def __call__(self, step: int, feedback_open: bool) -> None:
         due = feedback_open and step % self.settings.every == 0
         pairs = self.recent_pairs() if due else None
+        source = self.hybrid if feedback_open and self.hybrid is not None else self.replay
         if pairs is None:
-            self.agent.update_from(self.replay, self.settings.batch, self.generator)
+            self.agent.update_from(source, self.settings.batch, self.generator)
             return
-        batch = self.replay.sample(self.settings.batch, self.generator)
+        batch = source.sample(self.settings.batch, self.generator)
         loss = meta_reward_step(
             self.agent, self.reward_model, batch, pairs, self.generator, self.settings.loss_weight
         )

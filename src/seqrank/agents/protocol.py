@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 import torch
 
-from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.buffer import Batch, BatchSource
 
 
 class Policy(Protocol):
@@ -33,9 +33,7 @@ class Agent(Policy, Protocol):
         """One learning step on a given batch (pre-training, MRN, after a critic reset)."""
         ...
 
-    def update_from(
-        self, replay: ReplayBuffer, batch_size: int, generator: torch.Generator
-    ) -> None:
+    def update_from(self, replay: BatchSource, batch_size: int, generator: torch.Generator) -> None:
         """One learning step on a batch the agent samples from `replay` (the hot loop)."""
         ...
 

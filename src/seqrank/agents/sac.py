@@ -22,7 +22,7 @@ from seqrank.agents.cuda_graph import GraphedCall
 from seqrank.agents.networks import Actor, squashed_gaussian
 from seqrank.agents.precision import autocast, matmul_precision
 from seqrank.agents.sac_state import load_sac_state, sac_state
-from seqrank.buffer import Batch, ReplayBuffer
+from seqrank.buffer import Batch, BatchSource
 
 
 @dataclass(frozen=True)
@@ -136,9 +136,7 @@ class SAC:
         next_noise = self.noise(rows, generator)
         self.update_with_noise(batch, next_noise, self.noise(rows, generator))
 
-    def update_from(
-        self, replay: ReplayBuffer, batch_size: int, generator: torch.Generator
-    ) -> None:
+    def update_from(self, replay: BatchSource, batch_size: int, generator: torch.Generator) -> None:
         """The hot-loop update: a batch from `replay`; replayed from a graph on CUDA."""
         if not self.execution.graphs or not self.actor_opt.state:
             # eager; also the very first update, which creates the optimisers' state
@@ -244,7 +242,7 @@ class SAC:
         soft_update(self.critic_target.parameters(), self.critic.parameters(), self.settings.tau)
 
     # ---- CUDA graphs --------------------------------------------------------------------
-    def _captured(self, replay: ReplayBuffer, batch_size: int) -> tuple[GraphedCall, GraphedCall]:
+    def _captured(self, replay: BatchSource, batch_size: int) -> tuple[GraphedCall, GraphedCall]:
         key = (id(replay), batch_size)
         if self._graphs is None or self._graphs[0] != key:
             if replay.storage != self.device:

@@ -48,6 +48,9 @@ class SessionRequest:
     def path_unchecked(self) -> int | None:
         return None if self.recheck is None else self.recheck.path_unchecked
 
+    # with `query_episodes`: the numbers of the first and last episode the pool is cut from
+    episodes: tuple[int, int] | None = None
+
 
 class FeedbackSource(Protocol):
     """Who answers a run's questions: anything with these three methods (a scripted
@@ -98,6 +101,7 @@ class SessionPlan:
     oversample: int  # candidate pool = this x what the scheme needs, for informative picks
     segment_length: int
     recheck: Recheck | None = None
+    query_episodes: int = 0  # QPA: cut the pool from the last N episodes only (0: all kept)
 
 
 @dataclass(frozen=True)
@@ -120,15 +124,31 @@ def prepare_session(
 
     With an informative selection (after the first session) the candidate pool is
     `oversample` times what the scheme needs, and the chooser picks among it.
+
+    QPA's policy-aligned query selection (Hu et al., ICLR 2024) is where the
+    pool comes from, whatever the selection and scheme: with `query_episodes` N, only the
+    last N episodes, those of the current policy. QPA kept 10 on DMControl
+    (`max_reward_buffer_size=10` in `run_QPA.sh` of github.com/huxiao09/QPA; 30 or 60 on
+    Meta-World) where PEBBLE keeps 100; 0 (the default) keeps PEBBLE's behaviour.
     """
     needed = segments_needed(plan.scheme, questions)
     use_model = informative and plan.selection != "uniform"
     pool = needed * (plan.oversample if use_model else 1)
-    sampled = episodes.sample_segments(pool, plan.segment_length, rng)
+    last = plan.query_episodes
+    sampled = episodes.sample_segments(pool, plan.segment_length, rng, last)
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
+    window = episodes.window(last) if last else None
     return SessionRequest(
-        plan.scheme, questions, session, sampled, chooser, rng, margin, plan.recheck
+        plan.scheme,
+        questions,
+        session,
+        sampled,
+        chooser,
+        rng,
+        margin,
+        recheck=plan.recheck,
+        episodes=window,
     )
 
 

@@ -38,6 +38,9 @@ FEEDBACK_ONLY = {
     "feedback_frequency",
     "segment_length",
     "episodes_kept",
+    "query_episodes",
+    "hybrid_replay",
+    "hybrid_episodes",
     "meta_update_frequency",
     "meta_loss_weight",
 }

@@ -143,7 +143,10 @@ def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
     if first:
         reset_critic(t.agent, t.replay, config.updates_after_reset, config.batch, t.generator)
     quality = t.reward.quality(config.seed, c.sessions)
-    t.run_dir.append_metrics(metrics.feedback_row(c, outcome.stats, result, len(t.labels), quality))
+    row = metrics.feedback_row(
+        c, outcome.stats, result, len(t.labels), quality, answered.request.episodes
+    )
+    t.run_dir.append_metrics(row)
 
 
 def evaluate(t: Trainer) -> None:

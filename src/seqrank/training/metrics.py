@@ -13,6 +13,7 @@ from seqrank.training.evaluation import PolicyScore
 from seqrank.training.state import Counters
 
 TRAIN_LOG_EVERY = 1_000  # steps between `train` rows
+QUERY_WINDOW = ("query_first_episode", "query_last_episode")
 
 
 def count_session(c: Counters, stats: AugmentationStats) -> None:
@@ -30,7 +31,11 @@ def feedback_row(
     result: RewardTrainResult | None,
     total_pairs: int,
     quality: dict[str, float],
+    episodes: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
+    """`episodes`: with `query_episodes`, the first and last episode (numbered over the
+    run) that the session's candidate segments were cut from."""
+    window = {} if episodes is None else dict(zip(QUERY_WINDOW, episodes, strict=True))
     return {
         "step": c.step,
         "kind": "feedback",
@@ -54,6 +59,7 @@ def feedback_row(
         "reward_loss": result.loss if result else None,
         "reward_train_accuracy": result.accuracy if result else None,
         **quality,
+        **window,
     }
 
 

@@ -135,7 +135,8 @@ class Trainer:
                 config.selection.value,
                 config.oversample,
                 config.segment_length,
-                config.recheck,
+                recheck=config.recheck,
+                query_episodes=config.query_episodes,
             ),
             self.source,
             self.episodes,
@@ -156,6 +157,7 @@ class Trainer:
             self.counters.extra.__setitem__,
             env.obs_dim,
             self.generator,
+            env.episode_length,
         )
         self.update = BACKBONES[config.backbone](config, parts)
         self.evaluations = self._evaluations()
