@@ -33,7 +33,7 @@ def numbered_store(episodes: int, keep: int) -> EpisodeStore:
 
 
 def session_from(store: EpisodeStore, scheme: str, selection: str, query_episodes: int):
-    plan = SessionPlan(scheme, selection, 4, 10, query_episodes)
+    plan = SessionPlan(scheme, selection, 4, 10, query_episodes=query_episodes)
     model = RewardModel(3, OBS + ACT, 8, 2, 1e-3, torch.device("cpu"))
     rng = np.random.default_rng(1)
     request = prepare_session(plan, 12, store, model, 1, rng, informative=True, margin=0.0)
