@@ -179,3 +179,25 @@ def test_pairwise_questions_have_no_roles(tmp_path):
         assert question["left"]["role"] is None and question["right"]["role"] is None
     finally:
         page.close()
+
+
+def test_a_checked_session_shows_a_winning_challenger_again(tmp_path):
+    # root, noise-aware: the second challenger's win would put it above the first one's
+    # loser, so the same two clips come back; the person agrees, and the root moves on
+    page = Page(tmp_path / "labels", "root", 4, augment="checked")
+    try:
+        shown = []
+        for _ in range(4):
+            question = page.question()
+            challenger = "left" if question["left"]["role"] == "challenger" else "right"
+            defender = "right" if challenger == "left" else "left"
+            wins = len(shown) in (1, 2)  # the 2nd question and its repeat
+            choice = challenger if wins else defender
+            _, reply = page.answer(choice)
+            assert reply.status_code == 200
+            shown.append({question["left"]["segment"], question["right"]["segment"]})
+        page.done.wait(10)
+        assert shown[1] == shown[2] and shown[0] != shown[1] and shown[2] != shown[3]
+        assert len(page.hub.db.answered_questions()) == 4
+    finally:
+        page.close()

@@ -55,6 +55,7 @@ class Page:
         token: str | None = None,
         task: str = TASK,
         segment_length: int = 50,
+        augment: str = "full",
     ):
         self.directory = directory
         options = ServerOptions(token=token, countdown_s=3.0, annotator="tester")
@@ -62,7 +63,7 @@ class Page:
         self.client = page_client(self.hub)
         if token:
             self.client.headers["X-Seqrank-Token"] = token
-        offline = OfflineOptions(task, scheme, questions, 1, segment_length, 1, 0, None)
+        offline = OfflineOptions(task, scheme, questions, 1, segment_length, 1, 0, None, augment)
         self.done = threading.Event()
         self.error: list[BaseException] = []
 

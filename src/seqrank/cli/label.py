@@ -70,6 +70,13 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument("--questions", type=positive, default=10, help="per session (10)")
     offline.add_argument("--sessions", type=positive, default=1, help="(1)")
     offline.add_argument(
+        "--augment",
+        choices=("full", "checked"),
+        default="full",
+        help="checked: an answer that would imply many pairs is asked again (README "
+        "'Noise-aware augmentation'); a run replaying these labels chooses its own closure",
+    )
+    offline.add_argument(
         "--segment-length", type=positive, help="steps (the task's: 50, block:place 30)"
     )
     offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
@@ -127,6 +134,7 @@ def _offline_options(args: argparse.Namespace) -> Any:
         args.episodes,
         args.seed,
         args.policy_run,
+        args.augment,
     )
 
 

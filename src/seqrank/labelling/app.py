@@ -26,6 +26,7 @@ from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task, make_env
 from seqrank.envs.recorder import EpisodeRecorder
 from seqrank.episodes import EpisodeStore
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -162,6 +163,7 @@ class OfflineOptions:
     episodes: int
     seed: int
     policy_run: Path | None  # a run directory whose saved policy acts; None: random actions
+    augment: str = "full"  # checked: answers that would imply many pairs are asked again
 
 
 def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
@@ -229,6 +231,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
             make_chooser("uniform", None),
             rng,
             0.0,
+            recheck=Recheck() if options.augment == "checked" else None,
         )
         say(f"session {session + 1}/{options.sessions}: {options.questions} questions")
         source.ask_session(request)
