@@ -56,6 +56,14 @@ class RewardSignal(StrEnum):
         return {"learned": "learned", "true": "true-reward", "none": "no-feedback"}[self.value]
 
 
+class RewardLearner(StrEnum):
+    """How the reward ensemble learns from the labelled pairs (docs/reward-learners.md)."""
+
+    PLAIN = "plain"  # Bradley-Terry on every labelled pair (PEBBLE)
+    SURF = "surf"  # + confident pseudo-labels on unlabelled pairs, temporal cropping
+    RIME = "rime"  # trusted labels by their loss, the least likely ones flipped
+
+
 class Selection(StrEnum):
     UNIFORM = "uniform"
     DISAGREEMENT = "disagreement"

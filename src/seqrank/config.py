@@ -17,6 +17,7 @@ from seqrank.choices import (
     Backbone,
     Device,
     Precision,
+    RewardLearner,
     RewardSignal,
     Scale,
     Selection,
@@ -28,6 +29,8 @@ from seqrank.envs import canonical_task
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 from seqrank.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
+from seqrank.reward.rime import RimeSettings
+from seqrank.reward.surf import SurfSettings
 
 BACKBONES = tuple(Backbone)
 SELECTIONS = tuple(Selection)
@@ -45,6 +48,7 @@ CHOICES: dict[str, type[Any]] = {
     "path": TrainingPath,
     "precision": Precision,
     "reward": RewardSignal,
+    "reward_learner": RewardLearner,
 }
 
 
@@ -98,6 +102,20 @@ class TrainConfig:
     reward_minibatch: int = 128
     reward_epochs: int = 50
     reward_stop_accuracy: float = 0.97
+    # reward learners beyond the paper (SURF, RIME): docs/reward-learners.md; the defaults
+    # and their sources are in `SurfSettings` and `RimeSettings`
+    reward_learner: RewardLearner = RewardLearner.PLAIN
+    surf_threshold: float = SurfSettings.threshold
+    surf_unlabelled_ratio: int = SurfSettings.unlabelled_ratio
+    surf_unlabelled_batch: int = SurfSettings.unlabelled_batch
+    surf_loss_weight: float = SurfSettings.loss_weight
+    surf_crop: int = SurfSettings.crop
+    rime_alpha: float = RimeSettings.alpha
+    rime_beta_max: float = RimeSettings.beta_max
+    rime_beta_min: float = RimeSettings.beta_min
+    rime_decay_updates: int = RimeSettings.decay_updates
+    rime_tau_upper: float = RimeSettings.tau_upper
+    warm_start: int = 0  # 1: RIME's warm start of the reward model in pre-training
     # MRN (SPEC section 7)
     meta_update_frequency: int = 1_000
     meta_loss_weight: float = 0.1
@@ -148,9 +166,25 @@ MAX_COUNT = 2**31 - 1
 MAX_SEED = 2**32 - 1
 # settings whose size each feedback session allocates at once: a candidate pool this many
 # times what the scheme needs, and this many held-out segment pairs
-MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
-FROM_ZERO = ("seed", "seed_steps", "unsup_steps", "updates_after_reset", "record_states")
-AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy")
+MAX = {
+    "seed": MAX_SEED,
+    "record_states": 1,
+    "oversample": 100,
+    "heldout_pairs": 100_000,
+    "surf_unlabelled_ratio": 1_000,  # unlabelled pairs per question, cut each session
+    "surf_unlabelled_batch": 100,
+    "warm_start": 1,
+}
+FROM_ZERO = (
+    "seed",
+    "seed_steps",
+    "unsup_steps",
+    "updates_after_reset",
+    "record_states",
+    "surf_crop",
+    "warm_start",
+)
+AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy", "surf_threshold", "rime_tau_upper")
 
 
 def check_setting(name: str, value: Any) -> None:
@@ -213,7 +247,28 @@ def validate(config: TrainConfig) -> None:
         )
     if config.reward.asks:
         _check_budget(config)
+    _check_learner(config)
     _check_fine_tuning(config)
+
+
+def _check_learner(config: TrainConfig) -> None:
+    """The reward learners' settings that depend on each other."""
+    if config.surf_crop >= config.segment_length:
+        raise ValueError(
+            f"surf_crop {config.surf_crop} must be smaller than segment_length "
+            f"{config.segment_length}: a crop keeps at least one step; accepted: 0 to "
+            f"{config.segment_length - 1}"
+        )
+    if config.rime_beta_min > config.rime_beta_max:
+        raise ValueError(
+            f"rime_beta_min {config.rime_beta_min} exceeds rime_beta_max "
+            f"{config.rime_beta_max}: the uncertainty weight decays from max to min"
+        )
+    if config.rime_tau_upper >= 0.5:
+        raise ValueError(
+            f"rime_tau_upper must be below 0.5, got {config.rime_tau_upper}: RIME flips a "
+            "label the model gives less than this probability"
+        )
 
 
 # what the clips of a session show, in session order (the study's instructions: first
