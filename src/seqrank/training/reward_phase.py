@@ -11,6 +11,7 @@ import torch
 from seqrank.buffer import ReplayBuffer, RewardFn
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.labels import LabelStore
+from seqrank.reward.learners import give_unlabelled
 from seqrank.reward.model import Learner, PlainLearner, RewardModel, RewardTrainResult
 from seqrank.training.evaluation import reward_quality
 
@@ -76,12 +77,3 @@ class RewardLearning:
         return reward_quality(
             self.model, self.episodes, self.replay, s.heldout_pairs, s.segment_length, rng
         )
-
-
-def give_unlabelled(learner: Learner, episodes: EpisodeStore, length: int, seed: list[int]) -> None:
-    """The unlabelled segment pairs a learner wants before a fit (SURF's), cut uniformly
-    from the kept episodes by their own stream: a resumed run cuts the same ones."""
-    if learner.unlabelled_pairs and len(episodes):
-        rng = np.random.default_rng(seed)
-        cut = episodes.sample_segments(2 * learner.unlabelled_pairs, length, rng)
-        learner.use_unlabelled(cut.features, cut.rewards.sum(1))
