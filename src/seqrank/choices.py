@@ -61,6 +61,14 @@ class Augment(StrEnum):
     CHECKED = "checked"  # noise-aware: re-check big moves, chain few unrepeated answers
 
 
+class RewardLearner(StrEnum):
+    """How the reward ensemble learns from the labelled pairs (docs/reward-learners.md)."""
+
+    PLAIN = "plain"  # Bradley-Terry on every labelled pair (PEBBLE)
+    SURF = "surf"  # + confident pseudo-labels on unlabelled pairs, temporal cropping
+    RIME = "rime"  # trusted labels by their loss, the least likely ones flipped
+
+
 class Selection(StrEnum):
     UNIFORM = "uniform"
     DISAGREEMENT = "disagreement"

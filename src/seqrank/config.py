@@ -7,17 +7,17 @@ overrides. Every field is a `seqrank train` option (`--field-name VALUE`).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, fields, replace
-from pathlib import Path
 from typing import Any
 
+from seqrank import config_rules as rules
 from seqrank.choices import (
     Augment,
     Backbone,
     Device,
     Precision,
+    RewardLearner,
     RewardSignal,
     Scale,
     Selection,
@@ -30,6 +30,8 @@ from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 from seqrank.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
+from seqrank.reward.rime import RimeSettings
+from seqrank.reward.surf import SurfSettings
 
 BACKBONES = tuple(Backbone)
 SELECTIONS = tuple(Selection)
@@ -48,6 +50,7 @@ CHOICES: dict[str, type[Any]] = {
     "precision": Precision,
     "reward": RewardSignal,
     "augment": Augment,
+    "reward_learner": RewardLearner,
 }
 
 
@@ -104,7 +107,7 @@ class TrainConfig:
     hybrid_episodes: int = 10  # hybrid replay's recent window, in episodes of the task
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
-    # buffer and episodes to start from, and what the sessions' clips show (`FINETUNE_PARTS`)
+    # buffer and episodes to start from, and what the sessions' clips show (`config_rules.FINETUNE_PARTS`)
     start_from: str = ""
     parts: str = ""
     # reward model (SPEC section 5)
@@ -115,6 +118,20 @@ class TrainConfig:
     reward_minibatch: int = 128
     reward_epochs: int = 50
     reward_stop_accuracy: float = 0.97
+    # reward learners beyond the paper (SURF, RIME): docs/reward-learners.md; the defaults
+    # and their sources are in `SurfSettings` and `RimeSettings`
+    reward_learner: RewardLearner = RewardLearner.PLAIN
+    surf_threshold: float = SurfSettings.threshold
+    surf_unlabelled_ratio: int = SurfSettings.unlabelled_ratio
+    surf_unlabelled_batch: int = SurfSettings.unlabelled_batch
+    surf_loss_weight: float = SurfSettings.loss_weight
+    surf_crop: int = SurfSettings.crop
+    rime_alpha: float = RimeSettings.alpha
+    rime_beta_max: float = RimeSettings.beta_max
+    rime_beta_min: float = RimeSettings.beta_min
+    rime_decay_updates: int = RimeSettings.decay_updates
+    rime_tau_upper: float = RimeSettings.tau_upper
+    warm_start: int = 0  # 1: RIME's warm start of the reward model in pre-training
     # MRN (SPEC section 7)
     meta_update_frequency: int = 1_000
     meta_loss_weight: float = 0.1
@@ -172,7 +189,15 @@ MAX_COUNT = 2**31 - 1
 MAX_SEED = 2**32 - 1
 # settings whose size each feedback session allocates at once: a candidate pool this many
 # times what the scheme needs, and this many held-out segment pairs
-MAX = {"seed": MAX_SEED, "record_states": 1, "oversample": 100, "heldout_pairs": 100_000}
+MAX = {
+    "seed": MAX_SEED,
+    "record_states": 1,
+    "oversample": 100,
+    "heldout_pairs": 100_000,
+    "surf_unlabelled_ratio": 1_000,  # unlabelled pairs per question, cut each session
+    "surf_unlabelled_batch": 100,
+    "warm_start": 1,
+}
 FROM_ZERO = (
     "seed",
     "seed_steps",
@@ -182,8 +207,17 @@ FROM_ZERO = (
     "path_unchecked",
     "query_episodes",
     "hybrid_replay",
+    "surf_crop",
+    "warm_start",
 )
-AT_MOST_ONE = ("discount", "tau", "reward_stop_accuracy", "hybrid_replay")
+AT_MOST_ONE = (
+    "discount",
+    "tau",
+    "reward_stop_accuracy",
+    "hybrid_replay",
+    "surf_threshold",
+    "rime_tau_upper",
+)
 
 
 def check_setting(name: str, value: Any) -> None:
@@ -229,7 +263,7 @@ def validate(config: TrainConfig) -> None:
         )
     check_path(config.path, config.precision, discrete=suite == "block")
     if not config.reward.asks:
-        _check_baseline(config)
+        rules.check_baseline(config)
     elif config.teacher_spec.kind == "human" and not config.record_states:
         raise ValueError(
             "teacher 'human' answers on the labelling page: use `seqrank label online` "
@@ -252,92 +286,7 @@ def validate(config: TrainConfig) -> None:
             "a session cannot ask more questions than the whole budget"
         )
     if config.reward.asks:
-        _check_budget(config)
-    _check_fine_tuning(config)
-    _check_qpa(config)
-
-
-def _check_qpa(config: TrainConfig) -> None:
-    """Query-policy alignment narrows where new segments are cut and what agent batches
-    hold while feedback is asked for: it needs new segments, and questions."""
-    n = config.query_episodes
-    if n > config.episodes_kept:
-        raise ValueError(
-            f"query_episodes {n} exceeds episodes_kept {config.episodes_kept}: segments are "
-            f"cut from the last query_episodes of the kept episodes; accepted: 0 (all) to "
-            f"{config.episodes_kept}"
-        )
-    if not config.reward.asks and (n or config.hybrid_replay):
-        raise ValueError(
-            f"query_episodes and hybrid_replay act while feedback is asked for; reward "
-            f"'{config.reward}' asks none: leave them out"
-        )
-    if n and config.teacher_spec.kind == "replay":
-        raise ValueError(
-            f"teacher '{config.teacher}' replays recorded segments; query_episodes chooses "
-            "where new segments are cut: leave it out (hybrid_replay works with replay)"
-        )
-    if n and config.parts:
-        raise ValueError(
-            f"parts {config.parts!r} replaces a session's episodes with fresh ones of the "
-            "current policy (aligned already, one per skill level); query_episodes would "
-            "drop some: leave it out"
-        )
-
-
-# what the clips of a session show, in session order (the study's instructions: first
-# low-performing trajectories, then trajectories of varying performance)
-FINETUNE_PARTS = ("low", "varied")
-
-
-def _check_fine_tuning(config: TrainConfig) -> None:
-    parts = [p for p in config.parts.split(",") if p]
-    if any(p not in FINETUNE_PARTS for p in parts):
-        raise ValueError(
-            f"parts {config.parts!r}: give a comma-separated list of {', '.join(FINETUNE_PARTS)}"
-        )
-    if not config.start_from:
-        return
-    source = Path(config.start_from)
-    if not (source / "checkpoint.pt").is_file() or not (source / "config.json").is_file():
-        raise ValueError(
-            f"start_from {config.start_from!r}: not a run directory with a checkpoint "
-            "(config.json and checkpoint.pt)"
-        )
-    saved = json.loads((source / "config.json").read_text())
-    if canonical_task(saved["task"]) != canonical_task(config.task):
-        raise ValueError(
-            f"start_from {config.start_from!r} trained {saved['task']!r}, not {config.task!r}"
-        )
-    for name in ("hidden", "layers", "reward_hidden", "reward_layers", "reward_ensemble"):
-        if saved.get(name) != getattr(config, name):
-            raise ValueError(
-                f"start_from {config.start_from!r} has {name} {saved.get(name)!r}, this run "
-                f"{getattr(config, name)!r}: a run starts from one of the same task and sizes"
-            )
-
-
-def _check_budget(config: TrainConfig) -> None:
-    """Every session of the feedback budget falls within the run's steps."""
-    last_session = config.first_session_step + (config.sessions - 1) * config.feedback_frequency
-    if last_session >= config.steps:
-        raise ValueError(
-            f"impossible budget: {config.sessions} sessions of {config.reward_batch} questions "
-            f"every {config.feedback_frequency} steps from step {config.first_session_step} "
-            f"end at step {last_session}, but the run has only {config.steps} steps; "
-            "raise --steps or --reward-batch, or lower --max-feedback or --feedback-frequency"
-        )
-
-
-def _check_baseline(config: TrainConfig) -> None:
-    """A baseline run (`reward` true or none) asks no questions."""
-    if config.backbone != Backbone.PEBBLE:
-        raise ValueError(
-            f"backbone '{config.backbone}' learns its reward from feedback; reward "
-            f"'{config.reward}' asks for none: use backbone pebble"
-        )
-    if config.teacher_spec.kind != "scripted":
-        raise ValueError(
-            f"teacher '{config.teacher}' answers questions; reward '{config.reward}' asks "
-            "none: leave --teacher out"
-        )
+        rules.check_budget(config)
+    rules.check_learner(config)
+    rules.check_fine_tuning(config)
+    rules.check_qpa(config)

@@ -19,7 +19,7 @@ from seqrank.rewardbench.pool import (
     random_episodes,
     save_pool,
 )
-from seqrank.rewardbench.summary import interval, summarise
+from seqrank.rewardbench.summary import format_table, interval, summarise
 
 SMALL = BenchSettings(
     budgets=(10, 30),
@@ -144,6 +144,43 @@ def test_the_grid_continues_a_killed_run_without_repeating_a_cell(pool_file, tmp
         run_grid([pool_file], ["pairwise"], ["oracle"], [0], other, out, 1)
 
 
+@pytest.mark.parametrize("learner", ["surf", "rime"])
+def test_a_cell_learns_with_each_learner_and_repeats_itself(learner):
+    """Each learner's cell fits and scores at every budget, its measures in the row; the
+    same cell twice gives the same rows. (Above chance: each learner learns the reward.)"""
+    cell = Cell("sequential", "oracle", 1, learner)
+    rows = run_cell(synthetic_pool(), cell, SMALL)
+    assert [r["questions"] for r in rows] == [10, 30]
+    assert all(r["learner"] == learner for r in rows) and rows[-1]["accuracy"] > 0.6
+    again = run_cell(synthetic_pool(), cell, SMALL)
+    assert [r["accuracy"] for r in again] == [r["accuracy"] for r in rows]
+
+
+def test_the_grid_has_a_learner_axis_and_rows_before_it_count_as_plain(pool_file, tmp_path):
+    out = tmp_path / "grid"
+    learners = ("plain", "surf", "rime")
+    rows = run_grid([pool_file], ["root"], ["oracle"], [0], SMALL, out, 2, learners=learners)
+    assert sorted({r["learner"] for r in rows}) == sorted(learners) and len(rows) == 3 * 2
+    # a grid written before the axis: its rows have no learner, and stand for plain
+    old = [{k: v for k, v in r.items() if k != "learner"} for r in rows if r["learner"] == "plain"]
+    (out / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in old))
+    seen: list[tuple[int, int]] = []
+    again = run_grid(
+        [pool_file],
+        ["root"],
+        ["oracle"],
+        [0],
+        SMALL,
+        out,
+        1,
+        lambda done, total: seen.append((done, total)),
+        learners=["plain"],
+    )
+    assert again == old and seen == [(1, 1)]  # nothing run again
+    table = format_table(summarise(rows))
+    assert "| oracle | surf | 30 | root |" in table and "| oracle | rime | 30 | root |" in table
+
+
 def test_the_summary_has_a_mean_and_t_interval_per_scheme_and_budget():
     assert interval([1.0]) == (1.0, 1.0, 1.0)
     mean, _, high = interval([1.0, 2.0, 3.0])
@@ -180,7 +217,7 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
     args += ["--seeds", "1", "--budgets", "10", "--session-questions", "10", "--out", str(out)]
     assert main([*args, "--heldout-segments", "40", "--reward-epochs", "3", "--workers", "1"]) == 0
     printed = capsys.readouterr().out
-    assert "| dmc:cartpole_swingup | oracle | 10 | pairwise | 1 |" in printed
+    assert "| dmc:cartpole_swingup | oracle | plain | 10 | pairwise | 1 |" in printed
     assert (out / "curves_dmc-cartpole_swingup.png").read_bytes()[:4] == b"\x89PNG"
     assert main(["reward-bench", "run", "--pool", str(tmp_path / "none.npz")]) == 2
     assert "does not exist; build one with" in capsys.readouterr().err

@@ -12,11 +12,13 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from seqrank.choices import RewardLearner
 from seqrank.cli.options import int_between, names, positive, seed_number
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
 
 SCHEMES = [s.value for s in SchemeName]
+LEARNERS = [learner.value for learner in RewardLearner]
 
 
 def _numbers(text: str) -> list[int]:
@@ -34,8 +36,8 @@ def add_parser(commands: Any) -> None:
         "reward-bench",
         help="reward learning per question, by scheme, on saved trajectory pools (no RL)",
         description="The schemes' reward learning measured without RL's noise: build a pool "
-        "of real episodes (pool), run the grid of schemes x teachers x seeds (run), or score "
-        "labels exported from the labelling page (score). Measures on held-out segments: "
+        "of real episodes (pool), run the grid of schemes x teachers x learners x seeds (run), "
+        "or score labels exported from the labelling page (score). Measures on held-out segments: "
         "preference accuracy, Spearman rank correlation, wrong inferred labels.",
     )
     actions = bench.add_subparsers(dest="action", required=True)
@@ -54,6 +56,13 @@ def add_parser(commands: Any) -> None:
     grid.add_argument("--pool", type=Path, action="append", required=True, help="repeatable")
     grid.add_argument("--schemes", type=names(SCHEMES, "scheme"), default=SCHEMES)
     grid.add_argument("--teachers", type=lambda t: t.split(","), default=["oracle"])
+    grid.add_argument(
+        "--learners",
+        type=names(LEARNERS, "learner"),
+        default=["plain"],
+        help="reward learners, comma-separated (plain); RIME's warm start needs a "
+        "pre-training phase, which the benchmark has not",
+    )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     grid.add_argument("--budgets", type=_numbers, default=[25, 50, 100, 200])
     grid.add_argument("--session-questions", type=positive, default=25)
@@ -158,6 +167,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
                 args.out,
                 args.workers,
                 lambda done, total: progress.update(bar, completed=done, total=total),
+                learners=args.learners,
             )
     except ValueError as problem:
         raise UsageError(str(problem)) from None

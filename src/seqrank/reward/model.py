@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -47,6 +47,89 @@ class RewardTrainResult:
     epochs: int
     loss: float
     accuracy: float
+    learner: dict[str, float] = field(default_factory=dict)  # the learner's own measures
+
+
+class Learner(Protocol):
+    """How one fit uses the labelled pairs (`reward.learners`: plain, SURF, RIME).
+
+    The fit asks it, each epoch, which pairs (and labels) to train on, and, each
+    minibatch, for the loss; it keeps what it needs between fits (`state_dict`)."""
+
+    unlabelled_pairs: int  # unlabelled segment pairs it wants before each fit (0: none)
+
+    def use_unlabelled(self, segments: np.ndarray, true_returns: np.ndarray) -> None:
+        """Segments (2U, H, D) forming pairs (2i, 2i + 1), and their true returns (2U,)."""
+
+    def start_fit(self) -> None: ...
+
+    def epoch_pairs(self, model: RewardModel, segments: torch.Tensor, pairs: Pairs) -> Pairs: ...
+
+    def loss(
+        self,
+        model: RewardModel,
+        segments: torch.Tensor,
+        first: torch.Tensor,
+        second: torch.Tensor,
+        y: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(the members' summed loss, logits (members, B)) of one minibatch."""
+
+    def fit_metrics(self) -> dict[str, float]: ...
+
+    def state_dict(self) -> dict[str, Any]: ...
+
+    def load_state_dict(self, state: dict[str, Any]) -> None: ...
+
+
+Pairs = tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # first, second, labels
+
+
+def bradley_terry(
+    model: RewardModel,
+    segments: torch.Tensor,
+    first: torch.Tensor,
+    second: torch.Tensor,
+    y: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """BCE on segment-sum logits, the mean over a member's minibatch summed over members."""
+    logits = model.segment_returns(segments[first]) - model.segment_returns(segments[second])
+    loss = F.binary_cross_entropy_with_logits(logits, y, reduction="none").mean(1).sum()
+    return loss, logits
+
+
+class PlainLearner:
+    """Every labelled pair, every epoch, with its label (PEBBLE)."""
+
+    unlabelled_pairs = 0
+
+    def use_unlabelled(self, segments: np.ndarray, true_returns: np.ndarray) -> None:
+        return None
+
+    def start_fit(self) -> None:
+        return None
+
+    def epoch_pairs(self, model: RewardModel, segments: torch.Tensor, pairs: Pairs) -> Pairs:
+        return pairs
+
+    def loss(
+        self,
+        model: RewardModel,
+        segments: torch.Tensor,
+        first: torch.Tensor,
+        second: torch.Tensor,
+        y: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        return bradley_terry(model, segments, first, second, y)
+
+    def fit_metrics(self) -> dict[str, float]:
+        return {}
+
+    def state_dict(self) -> dict[str, Any]:
+        return {}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        return None
 
 
 class RewardModel:
@@ -70,11 +153,15 @@ class RewardModel:
         features = torch.as_tensor(np.concatenate([obs, action]), device=self.device)
         return float(self.net(features[None]).mean())
 
-    def segment_returns(self, segments: torch.Tensor) -> torch.Tensor:
-        """segments: (N, H, D) shared, or (members, N, H, D); returns (members, N)."""
+    def step_rewards(self, segments: torch.Tensor) -> torch.Tensor:
+        """segments: (N, H, D) shared, or (members, N, H, D); returns (members, N, H)."""
         n, horizon, features = segments.shape[-3:]
         flat = segments.reshape(*segments.shape[:-3], n * horizon, features)
-        return self.net(flat).reshape(self.members, n, horizon).sum(-1)
+        return self.net(flat).reshape(self.members, n, horizon)
+
+    def segment_returns(self, segments: torch.Tensor) -> torch.Tensor:
+        """segments: (N, H, D) shared, or (members, N, H, D); returns (members, N)."""
+        return self.step_rewards(segments).sum(-1)
 
     @torch.no_grad()
     def member_returns(self, segments: np.ndarray, chunk: int = 1024) -> np.ndarray:
@@ -96,17 +183,24 @@ class RewardModel:
         stop_accuracy: float,
         generator: torch.Generator,
         sync_every_step: bool = True,
+        learner: Learner | None = None,
     ) -> RewardTrainResult:
-        """Bradley-Terry on segment sums; each member its own shuffle of all pairs.
+        """Bradley-Terry on segment sums; each member its own shuffle of the epoch's pairs.
 
         labels: probability that `first` is preferred. Stops early once the mean train
         accuracy over hard labels exceeds `stop_accuracy`. `sync_every_step` reads the loss
         back after every minibatch, as the reference code does; otherwise the sums stay on
-        the device and are read once per epoch, for the stopping rule.
+        the device and are read once per epoch, for the stopping rule. `learner` (plain by
+        default) chooses each epoch's pairs and each minibatch's loss.
         """
-        pairs = len(labels)
+        learner = learner if learner is not None else PlainLearner()
+        learner.start_fit()
         loss_value, accuracy, epochs = 0.0, 0.0, 0
         for epochs in range(1, max_epochs + 1):  # noqa: B007 (the count is returned)
+            first_e, second_e, labels_e = learner.epoch_pairs(
+                self, segments, (first, second, labels)
+            )
+            pairs = len(labels_e)
             order = torch.stack(
                 [torch.randperm(pairs, generator=generator) for _ in range(self.members)]
             ).to(self.device)
@@ -114,7 +208,9 @@ class RewardModel:
             host_totals, steps = np.zeros(3), 0
             for start in range(0, pairs, minibatch):
                 idx = order[:, start : start + minibatch]  # (members, B)
-                step_totals = self._step(segments, first[idx], second[idx], labels[idx])
+                step_totals = self._step(
+                    learner, segments, first_e[idx], second_e[idx], labels_e[idx]
+                )
                 if sync_every_step:
                     host_totals += step_totals.cpu().numpy()
                 else:
@@ -123,18 +219,22 @@ class RewardModel:
             if not sync_every_step:
                 host_totals = totals.cpu().numpy()
             loss_sum, correct, counted = host_totals
-            loss_value = float(loss_sum) / steps
+            loss_value = float(loss_sum) / max(steps, 1)  # (a learner may keep no pair)
             accuracy = float(correct / counted) if counted else 1.0
             if accuracy > stop_accuracy:
                 break
-        return RewardTrainResult(epochs, loss_value, accuracy)
+        return RewardTrainResult(epochs, loss_value, accuracy, learner.fit_metrics())
 
     def _step(
-        self, segments: torch.Tensor, first: torch.Tensor, second: torch.Tensor, y: torch.Tensor
+        self,
+        learner: Learner,
+        segments: torch.Tensor,
+        first: torch.Tensor,
+        second: torch.Tensor,
+        y: torch.Tensor,
     ) -> torch.Tensor:
         """One optimiser step; returns (mean member loss, hits, hard labels) on the device."""
-        logits = self.segment_returns(segments[first]) - self.segment_returns(segments[second])
-        loss = F.binary_cross_entropy_with_logits(logits, y, reduction="none").mean(1).sum()
+        loss, logits = learner.loss(self, segments, first, second, y)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         self.optimizer.step()

@@ -16,6 +16,11 @@ of segments from held-out episodes:
 
 Every scheme of a seed sees the same random streams (common random numbers), so their
 differences are not sampling luck.
+
+A cell's `learner` (`RewardLearner`: plain, surf, rime; docs/reward-learners.md) is how
+the ensemble learns from the labels, with its default settings; SURF's unlabelled pairs
+are cut from the training episodes. RIME's warm start has no place here: the benchmark
+has no pre-training phase, so every learner starts from a fresh model.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
+from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel
 from seqrank.rewardbench.pool import Pool
 
@@ -64,14 +70,25 @@ class BenchSettings:
             raise ValueError("budgets and session questions must be at least 1")
 
 
+# the grid's axes besides task and seed, with the value a row written before the axis
+# existed stands for (a new axis: a `Cell` field, an entry here, a `_row` key)
+AXES = {"scheme": None, "teacher": None, "learner": "plain"}
+
+
 @dataclass(frozen=True)
 class Cell:
     scheme: str
     teacher: str
     seed: int
+    learner: str = "plain"
 
-    def key(self, task: str) -> tuple[str, str, str, int]:
-        return task, self.scheme, self.teacher, self.seed
+    def key(self, task: str) -> tuple[Any, ...]:
+        return (task, *(getattr(self, axis) for axis in AXES), self.seed)
+
+
+def row_key(row: dict[str, Any]) -> tuple[Any, ...]:
+    """The cell a row belongs to, as `Cell.key` gives it."""
+    return (row["task"], *(row.get(axis, default) for axis, default in AXES.items()), row["seed"])
 
 
 def heldout_measures(model: RewardModel, heldout: Segments) -> dict[str, float]:
@@ -118,6 +135,7 @@ def run_cell(
     model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
     source = source if source is not None else make_source(cell.teacher)
     plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length)
+    learner = make_learner(cell.learner, settings.session_questions, generator)
     labels, tally, session, rows = LabelStore(), _Tally(), 0, []
     started = time.perf_counter()
     for budget in settings.budgets:
@@ -129,6 +147,7 @@ def run_cell(
             session += 1
         if not len(labels):
             continue  # every answer so far was a skip: nothing to learn from
+        give_unlabelled(learner, episodes, settings.segment_length, [cell.seed, 3, session])
         model.train(
             *labels.tensors(cpu),
             net.epochs,
@@ -136,6 +155,7 @@ def run_cell(
             net.stop_accuracy,
             generator,
             sync_every_step=False,
+            learner=learner,
         )
         rows.append(_row(pool, cell, tally, len(labels), heldout, model, started))
         if tally.asked < budget:
@@ -157,6 +177,7 @@ def _row(
         "task": pool.task,
         "scheme": cell.scheme,
         "teacher": cell.teacher,
+        "learner": cell.learner,
         "seed": cell.seed,
         "questions": tally.asked,
         "answered": tally.answered,

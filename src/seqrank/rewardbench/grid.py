@@ -1,18 +1,18 @@
-"""Running the benchmark's grid: pools x teachers x seeds x schemes, cells in parallel
+"""Running the benchmark's grid: pools x teachers x seeds x schemes x learners, cells in parallel
 processes, each finished cell's rows appended to `rows.jsonl` at once, so a killed grid
 continues where it stopped and never repeats a finished cell."""
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from itertools import product
 from pathlib import Path
 from typing import Any
 
-from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, run_cell
+from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, row_key, run_cell
 from seqrank.rewardbench.pool import load_pool
 from seqrank.rows import read_rows
 
@@ -61,6 +61,7 @@ def run_grid(
     out: Path,
     workers: int,
     progress: Progress | None = None,
+    learners: Sequence[str] = ("plain",),
 ) -> list[dict[str, Any]]:
     """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
     tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
@@ -68,11 +69,11 @@ def run_grid(
     rows_path = out / "rows.jsonl"
     rows = read_rows(rows_path)
     rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
-    done = {(r["task"], r["scheme"], r["teacher"], r["seed"]) for r in rows}
+    done = {row_key(r) for r in rows}
     todo = [
-        (str(p), Cell(scheme, teacher, seed))
-        for p, teacher, seed, scheme in product(pools, teachers, seeds, schemes)
-        if Cell(scheme, teacher, seed).key(tasks[str(p)]) not in done
+        (str(p), Cell(scheme, teacher, seed, learner))
+        for p, teacher, seed, learner, scheme in product(pools, teachers, seeds, learners, schemes)
+        if Cell(scheme, teacher, seed, learner).key(tasks[str(p)]) not in done
     ]
     total, finished = len(todo) + len({k for k in done}), len(done)
     if progress is not None:

@@ -16,23 +16,25 @@ MEASURES = {
     "spearman": "rank correlation (Spearman)",
     "inferred_wrong": "wrong inferred labels (fraction)",
 }
-Group = tuple[str, str, str, int]  # task, teacher, scheme, questions
+Group = tuple[str, str, str, str, int]  # task, teacher, learner, scheme, questions
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per task, teacher, scheme and budget: each measure's mean and 95% interval."""
+    """Per task, teacher, learner, scheme and budget: each measure's mean and 95% interval."""
     groups: dict[Group, list[dict[str, Any]]] = defaultdict(list)
     for row in rows:
-        groups[(row["task"], row["teacher"], row["scheme"], row["questions"])].append(row)
+        learner = row.get("learner", "plain")  # (rows written before the learner axis)
+        groups[(row["task"], row["teacher"], learner, row["scheme"], row["questions"])].append(row)
     order = [s.value for s in SchemeName]
     summary = []
-    for (task, teacher, scheme, questions), members in sorted(
+    for (task, teacher, learner, scheme, questions), members in sorted(
         groups.items(),
-        key=lambda item: (*item[0][:2], order.index(item[0][2]), item[0][3]),
+        key=lambda item: (*item[0][:3], order.index(item[0][3]), item[0][4]),
     ):
         entry: dict[str, Any] = {
             "task": task,
             "teacher": teacher,
+            "learner": learner,
             "scheme": scheme,
             "questions": questions,
             "seeds": len(members),
@@ -47,16 +49,17 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None) -> str:
     lines = [
-        "| task | teacher | questions | scheme | seeds | labelled pairs | accuracy [95% CI] "
-        "| Spearman [95% CI] | wrong inferred |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| task | teacher | learner | questions | scheme | seeds | labelled pairs "
+        "| accuracy [95% CI] | Spearman [95% CI] | wrong inferred |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for e in summary:
         if budgets is not None and e["questions"] not in budgets:
             continue
         wrong = "-" if e["inferred_wrong"] is None else f"{e['inferred_wrong'][0]:.3f}"
         lines.append(
-            f"| {e['task']} | {e['teacher']} | {e['questions']} | {e['scheme']} | {e['seeds']} "
+            f"| {e['task']} | {e['teacher']} | {e['learner']} | {e['questions']} | {e['scheme']} "
+            f"| {e['seeds']} "
             f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} | {wrong} |"
         )
     return "\n".join(lines) + "\n"
@@ -70,8 +73,8 @@ def _cell(value: tuple[float, float, float] | None) -> str:
 
 
 def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
-    """Each measure against questions asked, one line per scheme with its 95% interval
-    shaded, one row of panels per teacher."""
+    """Each measure against questions asked, one line per scheme (and learner, when there
+    are several) with its 95% interval shaded, one row of panels per teacher."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,6 +82,7 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
 
     entries = [e for e in summary if e["task"] == task]
     teachers = list(dict.fromkeys(e["teacher"] for e in entries))
+    learners = {e["learner"] for e in entries}
     figure, axes = plt.subplots(
         len(teachers),
         len(MEASURES),
@@ -87,16 +91,18 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
     )
     for row, teacher in zip(axes, teachers, strict=True):
         for axis, (measure, title) in zip(row, MEASURES.items(), strict=True):
-            for scheme in dict.fromkeys(e["scheme"] for e in entries):
+            for scheme, learner in dict.fromkeys((e["scheme"], e["learner"]) for e in entries):
                 points = [
                     (e["questions"], *e[measure])
                     for e in entries
-                    if e["teacher"] == teacher and e["scheme"] == scheme and e[measure]
+                    if (e["teacher"], e["scheme"], e["learner"]) == (teacher, scheme, learner)
+                    and e[measure]
                 ]
                 if not points:
                     continue
                 x, mean, low, high = (np.array(column) for column in zip(*points, strict=True))
-                (line,) = axis.plot(x, mean, marker="o", label=scheme)
+                label = scheme if len(learners) == 1 else f"{scheme} ({learner})"
+                (line,) = axis.plot(x, mean, marker="o", label=label)
                 axis.fill_between(x, low, high, color=line.get_color(), alpha=0.2)
             axis.set_title(f"{teacher}: {title}", fontsize=10)
             axis.set_xlabel("questions asked")

@@ -18,6 +18,7 @@ def save_checkpoint(t: Trainer) -> None:
             "counters": c.state_dict(),
             "agent": t.agent.state_dict(),
             "reward_model": t.reward_model.state_dict(),
+            "reward_learner": t.reward.learner.state_dict(),  # e.g. RIME's epoch count
             "replay": t.replay.state_dict(),
             "episodes": t.episodes.state_dict(),
             "labels": t.labels.state_dict(),
@@ -41,6 +42,7 @@ def load_checkpoint(t: Trainer, state: dict[str, Any]) -> None:
     c.extra.update(state["counters"].get("extra", {}))
     t.agent.load_state_dict(state["agent"])
     t.reward_model.load_state_dict(state["reward_model"])
+    t.reward.learner.load_state_dict(state.get("reward_learner", {}))
     t.replay.load_state_dict(state["replay"])
     t.episodes.load_state_dict(state["episodes"])
     t.labels.load_state_dict(state["labels"])

@@ -58,6 +58,7 @@ def feedback_row(
         "reward_epochs": result.epochs if result else 0,
         "reward_loss": result.loss if result else None,
         "reward_train_accuracy": result.accuracy if result else None,
+        **(result.learner if result else {}),  # SURF's pseudo-labels, RIME's selection
         **quality,
         **window,
     }

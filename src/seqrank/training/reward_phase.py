@@ -11,7 +11,8 @@ import torch
 from seqrank.buffer import ReplayBuffer, RewardFn
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.labels import LabelStore
-from seqrank.reward.model import RewardModel, RewardTrainResult
+from seqrank.reward.learners import give_unlabelled
+from seqrank.reward.model import Learner, PlainLearner, RewardModel, RewardTrainResult
 from seqrank.training.evaluation import reward_quality
 
 
@@ -35,20 +36,23 @@ class RewardLearning:
         episodes: EpisodeStore,
         settings: RewardSettings,
         generator: torch.Generator,
+        learner: Learner | None = None,
     ):
         self.model, self.labels, self.replay = reward_model, labels, replay
         self.episodes, self.settings, self.generator = episodes, settings, generator
+        self.learner = learner if learner is not None else PlainLearner()  # checkpointed
 
     def reward_fn(self, trained: bool) -> RewardFn | None:
         """The learned reward for new transitions; none before the first session."""
         return self.model.reward if trained else None
 
-    def train(self) -> RewardTrainResult | None:
+    def train(self, run_seed: int, session: int) -> RewardTrainResult | None:
         """Fit every label so far. Every answer may be a skip (B-Pref's skip teacher on
         all-negative returns): then there is nothing to fit, and the model stays."""
         if not len(self.labels):
             return None
         s = self.settings
+        give_unlabelled(self.learner, self.episodes, s.segment_length, [run_seed, 3, session])
         segments, first, second, labels = self.labels.tensors(self.model.device)
         return self.model.train(
             segments,
@@ -60,6 +64,7 @@ class RewardLearning:
             s.stop_accuracy,
             self.generator,
             sync_every_step=s.sync_every_step,
+            learner=self.learner,
         )
 
     def relabel(self) -> None:

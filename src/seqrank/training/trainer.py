@@ -21,7 +21,10 @@ from seqrank.episodes import EpisodeStore
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan
 from seqrank.feedback.sources import make_source
+from seqrank.reward.learners import make_learner
 from seqrank.reward.model import RewardModel
+from seqrank.reward.rime import RimeSettings
+from seqrank.reward.surf import SurfSettings
 from seqrank.training.agent_factory import make_agent
 from seqrank.training.backbones import BACKBONES, UpdateParts
 from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
@@ -121,7 +124,13 @@ class Trainer:
             total_steps=config.steps,
         )
         self.pretraining = EntropyPretraining(
-            self.agent, self.replay, config.batch, config.knn_k, runtime.device, self.generator
+            self.agent,
+            self.replay,
+            config.batch,
+            config.knn_k,
+            runtime.device,
+            self.generator,
+            warm_start=self.reward_model if config.warm_start else None,
         )
         self.sessions = FeedbackSessions(
             Schedule(
@@ -173,8 +182,33 @@ class Trainer:
             sync_every_step=not fast,
             relabel_chunk=65_536 if fast else 8_192,
         )
+        learner = make_learner(
+            config.reward_learner,
+            config.reward_batch,
+            self.generator,
+            SurfSettings(
+                config.surf_threshold,
+                config.surf_unlabelled_ratio,
+                config.surf_unlabelled_batch,
+                config.surf_loss_weight,
+                config.surf_crop,
+            ),
+            RimeSettings(
+                config.rime_alpha,
+                config.rime_beta_max,
+                config.rime_beta_min,
+                config.rime_decay_updates,
+                config.rime_tau_upper,
+            ),
+        )
         return RewardLearning(
-            self.reward_model, self.labels, self.replay, self.episodes, settings, self.generator
+            self.reward_model,
+            self.labels,
+            self.replay,
+            self.episodes,
+            settings,
+            self.generator,
+            learner,
         )
 
     def _evaluations(self) -> Evaluations:
