@@ -107,7 +107,8 @@ class TrainConfig:
     hybrid_episodes: int = 10  # hybrid replay's recent window, in episodes of the task
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
-    # buffer and episodes to start from, and what the sessions' clips show (`config_rules.FINETUNE_PARTS`)
+    # buffer and episodes to start from, and what the sessions' clips show
+    # (`config_rules.FINETUNE_PARTS`)
     start_from: str = ""
     parts: str = ""
     # reward model (SPEC section 5)

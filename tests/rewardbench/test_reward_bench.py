@@ -274,3 +274,19 @@ def test_exported_labels_are_scored_on_a_pool(pool_file, tmp_path, capsys):
     assert main(["reward-bench", "score", str(path), "--pool", str(pool_file)]) == 0
     printed = capsys.readouterr().out
     assert printed.startswith("    8 answers,") and "wrong inferred 0.000" in printed
+
+
+def test_the_grid_has_an_augment_axis_that_re_checks_under_a_noisy_teacher(pool_file, tmp_path):
+    out = tmp_path / "checked"
+    augments = ("full", "checked")
+    rows = run_grid([pool_file], ["root"], ["mistake"], [0, 1], SMALL, out, 2, augments=augments)
+    by_augment = {a: [r for r in rows if r["augment"] == a] for a in augments}
+    assert all(len(v) == 2 * 2 for v in by_augment.values())  # 2 seeds x 2 budgets
+    assert all(r["asked_wrong"] is not None for r in rows)
+    # re-checks spend questions: fewer distinct pairs are asked, and fewer are inferred
+    full_inferred = sum(r["inferred"] for r in by_augment["full"])
+    assert sum(r["inferred"] for r in by_augment["checked"]) < full_inferred
+    table = format_table(summarise(rows))
+    assert (
+        "| mistake | plain+checked | 30 | root |" in table and "| mistake | plain | 30 |" in table
+    )

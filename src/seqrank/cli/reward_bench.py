@@ -63,6 +63,12 @@ def add_parser(commands: Any) -> None:
         help="reward learners, comma-separated (plain); RIME's warm start needs a "
         "pre-training phase, which the benchmark has not",
     )
+    grid.add_argument(
+        "--augments",
+        type=names(["full", "checked"], "augmentation"),
+        default=["full"],
+        help="full (the paper's closure), checked (noise-aware augmentation), comma-separated",
+    )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     grid.add_argument("--budgets", type=_numbers, default=[25, 50, 100, 200])
     grid.add_argument("--session-questions", type=positive, default=25)
@@ -168,6 +174,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
                 args.workers,
                 lambda done, total: progress.update(bar, completed=done, total=total),
                 learners=args.learners,
+                augments=args.augments,
             )
     except ValueError as problem:
         raise UsageError(str(problem)) from None

@@ -34,6 +34,7 @@ import torch
 from scipy import stats
 
 from seqrank.episodes import Segments
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
@@ -72,7 +73,7 @@ class BenchSettings:
 
 # the grid's axes besides task and seed, with the value a row written before the axis
 # existed stands for (a new axis: a `Cell` field, an entry here, a `_row` key)
-AXES = {"scheme": None, "teacher": None, "learner": "plain"}
+AXES = {"scheme": None, "teacher": None, "learner": "plain", "augment": "full"}
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,7 @@ class Cell:
     teacher: str
     seed: int
     learner: str = "plain"
+    augment: str = "full"  # checked: noise-aware augmentation (seqrank.feedback.checking)
 
     def key(self, task: str) -> tuple[Any, ...]:
         return (task, *(getattr(self, axis) for axis in AXES), self.seed)
@@ -107,10 +109,13 @@ def heldout_measures(model: RewardModel, heldout: Segments) -> dict[str, float]:
 class _Tally:
     def __init__(self) -> None:
         self.asked = self.answered = self.inferred = self.inferred_wrong = 0
+        self.strict = self.asked_wrong = 0
 
     def add(self, stats_: Any) -> None:
         self.asked += stats_.asked
         self.answered += stats_.answered
+        self.strict += stats_.answered - stats_.equal
+        self.asked_wrong += stats_.asked_wrong or 0
         self.inferred += stats_.inferred
         self.inferred_wrong += stats_.inferred_wrong or 0
 
@@ -134,7 +139,8 @@ def run_cell(
     features = pool.obs.shape[2] + pool.action.shape[2]
     model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
     source = source if source is not None else make_source(cell.teacher)
-    plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length)
+    recheck = Recheck() if cell.augment == "checked" else None
+    plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck)
     learner = make_learner(cell.learner, settings.session_questions, generator)
     labels, tally, session, rows = LabelStore(), _Tally(), 0, []
     started = time.perf_counter()
@@ -143,7 +149,8 @@ def run_cell(
             questions = min(settings.session_questions, budget - tally.asked)
             request = prepare_session(plan, questions, episodes, model, session, rng, False, margin)
             segments, record = source.ask_session(request)
-            tally.add(store_session(segments, record, labels, session).stats)
+            stored = store_session(segments, record, labels, session, request.path_unchecked)
+            tally.add(stored.stats)
             session += 1
         if not len(labels):
             continue  # every answer so far was a skip: nothing to learn from
@@ -178,12 +185,14 @@ def _row(
         "scheme": cell.scheme,
         "teacher": cell.teacher,
         "learner": cell.learner,
+        "augment": cell.augment,
         "seed": cell.seed,
         "questions": tally.asked,
         "answered": tally.answered,
         "pairs": pairs,
         "inferred": tally.inferred,
         "inferred_wrong": wrong,
+        "asked_wrong": tally.asked_wrong / tally.strict if tally.strict else None,
         **heldout_measures(model, heldout),
         "seconds": time.perf_counter() - started,
     }

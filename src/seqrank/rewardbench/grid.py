@@ -62,6 +62,7 @@ def run_grid(
     workers: int,
     progress: Progress | None = None,
     learners: Sequence[str] = ("plain",),
+    augments: Sequence[str] = ("full",),
 ) -> list[dict[str, Any]]:
     """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
     tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
@@ -71,9 +72,11 @@ def run_grid(
     rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
     done = {row_key(r) for r in rows}
     todo = [
-        (str(p), Cell(scheme, teacher, seed, learner))
-        for p, teacher, seed, learner, scheme in product(pools, teachers, seeds, learners, schemes)
-        if Cell(scheme, teacher, seed, learner).key(tasks[str(p)]) not in done
+        (str(p), cell)
+        for p, teacher, seed, learner, augment, scheme in product(
+            pools, teachers, seeds, learners, augments, schemes
+        )
+        if (cell := Cell(scheme, teacher, seed, learner, augment)).key(tasks[str(p)]) not in done
     ]
     total, finished = len(todo) + len({k for k in done}), len(done)
     if progress is not None:

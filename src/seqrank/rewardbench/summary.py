@@ -16,15 +16,23 @@ MEASURES = {
     "spearman": "rank correlation (Spearman)",
     "inferred_wrong": "wrong inferred labels (fraction)",
 }
-Group = tuple[str, str, str, str, int]  # task, teacher, learner, scheme, questions
+Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questions
+
+
+def method(row: dict[str, Any]) -> str:
+    """The reward learner, with `+checked` under noise-aware augmentation (rows written
+    before these axes are plain and full)."""
+    learner = row.get("learner", "plain")
+    return learner if row.get("augment", "full") == "full" else f"{learner}+checked"
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per task, teacher, learner, scheme and budget: each measure's mean and 95% interval."""
     groups: dict[Group, list[dict[str, Any]]] = defaultdict(list)
     for row in rows:
-        learner = row.get("learner", "plain")  # (rows written before the learner axis)
-        groups[(row["task"], row["teacher"], learner, row["scheme"], row["questions"])].append(row)
+        groups[(row["task"], row["teacher"], method(row), row["scheme"], row["questions"])].append(
+            row
+        )
     order = [s.value for s in SchemeName]
     summary = []
     for (task, teacher, learner, scheme, questions), members in sorted(
@@ -39,6 +47,7 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "questions": questions,
             "seeds": len(members),
             "pairs": float(np.mean([m["pairs"] for m in members])),
+            "asked_wrong": _mean_of([m.get("asked_wrong") for m in members]),
         }
         for measure in MEASURES:
             values = [m[measure] for m in members if m[measure] is not None]
@@ -49,20 +58,27 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None) -> str:
     lines = [
-        "| task | teacher | learner | questions | scheme | seeds | labelled pairs "
-        "| accuracy [95% CI] | Spearman [95% CI] | wrong inferred |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| task | teacher | method | questions | scheme | seeds | labelled pairs "
+        "| accuracy [95% CI] | Spearman [95% CI] | wrong inferred | wrong asked |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for e in summary:
         if budgets is not None and e["questions"] not in budgets:
             continue
         wrong = "-" if e["inferred_wrong"] is None else f"{e['inferred_wrong'][0]:.3f}"
+        asked = "-" if e["asked_wrong"] is None else f"{e['asked_wrong']:.3f}"
         lines.append(
             f"| {e['task']} | {e['teacher']} | {e['learner']} | {e['questions']} | {e['scheme']} "
             f"| {e['seeds']} "
-            f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} | {wrong} |"
+            f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} | {wrong} "
+            f"| {asked} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _mean_of(values: list[float | None]) -> float | None:
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known else None
 
 
 def _cell(value: tuple[float, float, float] | None) -> str:

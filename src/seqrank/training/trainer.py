@@ -139,14 +139,7 @@ class Trainer:
                 config.feedback_frequency,
                 env.episode_length,
             ),
-            SessionPlan(
-                config.scheme.value,
-                config.selection.value,
-                config.oversample,
-                config.segment_length,
-                recheck=config.recheck,
-                query_episodes=config.query_episodes,
-            ),
+            session_plan(config),
             self.source,
             self.episodes,
             self.reward_model,
@@ -267,3 +260,15 @@ def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.de
             f"steps {steps}: the replay buffer keeps every step, {needed / 2**30:,.1f} GiB, "
             f"more than the {total / 2**30:,.1f} GiB of memory on {storage.type}; lower --steps"
         )
+
+
+def session_plan(config: TrainConfig) -> SessionPlan:
+    """How the run's sessions are cut, chosen and checked."""
+    return SessionPlan(
+        config.scheme.value,
+        config.selection.value,
+        config.oversample,
+        config.segment_length,
+        recheck=config.recheck,
+        query_episodes=config.query_episodes,
+    )
