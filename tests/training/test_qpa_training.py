@@ -64,6 +64,8 @@ def test_qpa_trains_checkpoints_and_resumes(backbone, tmp_path):
     assert train_rows and all(r["hybrid_recent_share"] == 0.5 for r in train_rows)
     assert all(r["hybrid_window"] == 1000 for r in train_rows)  # one episode
 
+    if backbone == "mrn":
+        return  # resuming is the same code for both backbones: checked once, on pebble
     resumed, state = resume_after_kill(tmp_path / "killed", config, kill_at=2100)
     assert state["counters"]["step"] == 2000
     assert without_timing(resumed.run_dir.read_metrics()) == rows
