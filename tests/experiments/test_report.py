@@ -192,3 +192,21 @@ def test_runs_of_one_method_with_other_settings_are_reported_apart(tmp_path, cap
     assert report["notes"] == [note]
     assert f"Note: {note}." in (tmp_path / "r" / "report.md").read_text()
     assert f"note: {note}" in capsys.readouterr().err
+
+
+def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
+    fake_run(tmp_path / "root_plain", "walker_walk", "root", 0, [1.0, 300.0])
+    fake_run(tmp_path / "root_checked", "walker_walk", "root", 0, [1.0, 350.0], augment="checked")
+    fake_run(
+        tmp_path / "root_rime_qpa",
+        "walker_walk",
+        "root",
+        0,
+        [1.0, 400.0],
+        reward_learner="rime",
+        hybrid_replay=0.5,
+    )
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert sorted(report["methods"]) == ["root", "root+checked", "root+rime+qpa"]
+    assert report["notes"] == []  # nothing else differs: no split

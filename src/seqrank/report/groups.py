@@ -28,6 +28,8 @@ SAME_METHOD = {
     "teacher",
     "scale",
     "reward",
+    "augment",
+    "reward_learner",
 }
 # settings a baseline run (which asks no questions) never uses
 FEEDBACK_ONLY = {
@@ -43,6 +45,21 @@ FEEDBACK_ONLY = {
     "hybrid_episodes",
     "meta_update_frequency",
     "meta_loss_weight",
+    "augment",
+    "recheck_gain",
+    "recheck_twice_gain",
+    "path_unchecked",
+    "reward_learner",
+    "surf_threshold",
+    "surf_unlabelled_ratio",
+    "surf_unlabelled_batch",
+    "surf_loss_weight",
+    "surf_crop",
+    "rime_alpha",
+    "rime_beta_max",
+    "rime_beta_min",
+    "rime_decay_updates",
+    "rime_tau_upper",
 }
 
 

@@ -52,7 +52,7 @@ def method_names(runs: list[RunResult]) -> dict[Path, str]:
         if run.baseline:
             parts = [RewardSignal(run.reward).method]
         else:
-            parts = [run.scheme]
+            parts = [run.scheme + beyond_the_paper(run.settings)]
             if vary_backbone:
                 parts.append(run.backbone)
             if vary_teacher:
@@ -61,6 +61,18 @@ def method_names(runs: list[RunResult]) -> dict[Path, str]:
             parts.append(run.scale)
         names[run.path] = "/".join(parts)
     return names
+
+
+def beyond_the_paper(settings: Mapping[str, Any]) -> str:
+    """`+checked`, `+surf` or `+rime`, `+qpa`: the options beyond the paper a run used."""
+    marks = ""
+    if settings.get("augment", "full") != "full":
+        marks += f"+{settings['augment']}"
+    if settings.get("reward_learner", "plain") != "plain":
+        marks += f"+{settings['reward_learner']}"
+    if settings.get("query_episodes") or settings.get("hybrid_replay"):
+        marks += "+qpa"
+    return marks
 
 
 def _order(methods: set[str]) -> list[str]:
