@@ -27,11 +27,10 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import torch
 
 from seqrank.reward.entropy import RunningMeanStd
-from seqrank.reward.model import Pairs, bradley_terry
+from seqrank.reward.model import Pairs, PlainLearner
 
 if TYPE_CHECKING:
     from seqrank.reward.model import RewardModel
@@ -109,17 +108,12 @@ class RimeThreshold:
         self.stats.load_state_dict(state["stats"])
 
 
-class RimeLearner:
+class RimeLearner(PlainLearner):
     """The plain fit's loss on the pairs RIME keeps or flips (`reward.model.Learner`)."""
-
-    unlabelled_pairs = 0
 
     def __init__(self, settings: RimeSettings):
         self.threshold = RimeThreshold(settings)
         self.last: dict[str, float] = {}
-
-    def use_unlabelled(self, segments: np.ndarray, true_returns: np.ndarray) -> None:
-        return None
 
     def start_fit(self) -> None:
         self.last = {}
@@ -148,16 +142,6 @@ class RimeLearner:
         use = kept | flipped
         labels = torch.where(flipped, 1 - labels, labels)
         return first[use], second[use], labels[use]
-
-    def loss(
-        self,
-        model: RewardModel,
-        segments: torch.Tensor,
-        first: torch.Tensor,
-        second: torch.Tensor,
-        y: torch.Tensor,
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        return bradley_terry(model, segments, first, second, y)
 
     def fit_metrics(self) -> dict[str, float]:
         """The last epoch's selection: pairs kept, flipped and left out, and its bounds."""

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from seqrank.reward.model import Pairs
+from seqrank.reward.model import PlainLearner
 
 if TYPE_CHECKING:
     from seqrank.reward.model import RewardModel
@@ -83,7 +83,7 @@ def pseudo_labels(logits: torch.Tensor, threshold: float) -> tuple[torch.Tensor,
     return (p_first > 0.5).float(), confidence >= threshold
 
 
-class SurfLearner:
+class SurfLearner(PlainLearner):
     """The plain fit's epochs with SURF's loss (`reward.model.Learner`)."""
 
     def __init__(self, settings: SurfSettings, questions: int, generator: torch.Generator):
@@ -99,9 +99,6 @@ class SurfLearner:
 
     def start_fit(self) -> None:
         self._counts = None
-
-    def epoch_pairs(self, model: RewardModel, segments: torch.Tensor, pairs: Pairs) -> Pairs:
-        return pairs
 
     def loss(
         self,
