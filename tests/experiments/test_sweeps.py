@@ -308,6 +308,9 @@ class RecordingBackend:
         handle = self.pending.pop(0)
         yield handle, {"status": "trained", "summary": {"final_eval_return": 1.0}}, None
 
+    def stop(self):
+        pass
+
     def close(self):
         pass
 
@@ -360,3 +363,42 @@ def test_a_changed_sweep_file_names_the_runs_it_changed_and_reruns_them_when_ask
     assert not (sweep.out / "runs" / changed.name).exists()
     (moved,) = (sweep.out / "replaced").glob(f"*/{changed.name}")
     assert json.loads((moved / "config.json").read_text())["max_feedback"] == 10
+
+
+def test_sigterm_to_the_sweep_process_alone_stops_its_runs_with_a_checkpoint(tmp_path):
+    """`kill PID` of the sweep (not its process group) reaches the workers: the training
+    run stops at an episode end with a checkpoint, the queued run never starts, and the
+    command exits 143."""
+    import contextlib
+    import signal
+    import subprocess
+    import sys
+
+    from seqrank.dirs import DirLock
+
+    spec = tmp_path / "term.toml"
+    out = tmp_path / "out"
+    spec.write_text(BLOCK_SWEEP.format(out=out).replace("steps = 3000", "steps = 200000"))
+    command = [sys.executable, "-m", "seqrank", "sweep", str(spec), "--workers", "1"]
+    process = subprocess.Popen(
+        command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    first = out / "runs" / "block-place" / "pairwise_pebble_oracle_seed0"
+    second = out / "runs" / "block-place" / "root_pebble_oracle_seed0"
+    try:
+        deadline = time.monotonic() + 240
+        while not (first / "metrics.jsonl").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert (first / "metrics.jsonl").exists(), "the first run never started"
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # whatever is left of the group
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait(10)
+    assert process.returncode == 143, stderr
+    assert b"interrupted" in stderr
+    assert (first / "checkpoint.pt").exists() and not (first / "summary.json").exists()
+    with DirLock(first, "run directory"):  # the worker has let go of the run
+        pass
+    assert not (second / "metrics.jsonl").exists()

@@ -84,19 +84,23 @@ def _run(
     sweep: Any, changed: list[str], args: argparse.Namespace, out: Console, err: Console
 ) -> int:
     from seqrank.sweeps.engines import set_aside
+    from seqrank.training.stopping import interrupt_on_signals
 
     if changed:
         folder = set_aside(sweep, changed)
         err.print(f"{len(changed)} changed runs moved to {folder}; rerunning them", highlight=False)
-    try:
-        status = _run_with_progress(sweep, _backend(args), err)
-    except KeyboardInterrupt:
-        err.print(
-            "interrupted: runs stop at their next episode end with a checkpoint; rerun the "
-            "same command to continue",
-            highlight=False,
-        )
-        return 130
+    backend = _backend(args)
+    with interrupt_on_signals(backend.stop) as stop:
+        try:
+            status = _run_with_progress(sweep, backend, err)
+        except KeyboardInterrupt:
+            backend.close()  # waits for the runs to stop (a second signal: at once)
+            err.print(
+                "interrupted: the runs stopped at an episode end with a checkpoint; rerun "
+                "the same command to continue",
+                highlight=False,
+            )
+            return stop.exit_code()
     failed = [r for r in status.runs.values() if r.state == "failed"]
     out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
     for failure in failed:

@@ -3,13 +3,21 @@
 A finished run (its `summary.json` exists) is skipped; a killed run resumes from its last
 checkpoint; a failed run is tried again `retries` times and then reported, never dropped.
 `<out>/sweep.json` records every run's state after each event, atomically.
+
+Stopping: local workers ignore SIGINT and take SIGTERM as "stop at the next episode end with
+a checkpoint, and start no other run"; the sweep command forwards its own SIGINT or SIGTERM
+to them (`LocalBackend.stop`), so a signal sent to the sweep's process alone, as `kill` and
+schedulers do, stops every run cleanly. A second signal stops them at once.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
+import signal
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -21,6 +29,25 @@ from typing import Any, Protocol
 from seqrank.sweeps.spec import PlannedRun, Sweep
 
 ENGINES = ("local", "ray")
+
+# set in a local worker process by its first SIGTERM (see `_start_worker`)
+_worker_stop: threading.Event | None = None
+
+
+def _start_worker() -> None:
+    """A local worker's signals: SIGINT is the sweep command's to handle (a terminal's
+    Ctrl-C reaches the whole process group); the first SIGTERM asks the run to stop, a
+    second one interrupts it."""
+    global _worker_stop
+    stop = _worker_stop = threading.Event()
+
+    def on_term(signum: int, frame: object) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, on_term)
 
 
 def train_run(
@@ -36,14 +63,20 @@ def train_run(
     from seqrank.training.stopping import stop_on_signals
     from seqrank.training.trainer import Trainer
 
+    if _worker_stop is not None and _worker_stop.is_set():
+        raise RuntimeError("the sweep is stopping: run not started")
     torch.set_num_threads(threads)
     settings = TrainConfig(**config)
     started = open_or_start(Path(path), settings, settings.device, Trainer, wandb)
     try:
         if started.finished:
             return {"status": "skipped", "summary": started.run.read_summary()}
-        with stop_on_signals(started.trainer.stop_requested.set, lambda text: None):
+        if _worker_stop is not None:  # a local worker: its SIGTERM handler is installed
+            started.trainer.stop_requested = _worker_stop
             summary = started.trainer.train()
+        else:
+            with stop_on_signals(started.trainer.stop_requested.set, lambda text: None):
+                summary = started.trainer.train()
         return {"status": "resumed" if started.resumed else "trained", "summary": summary}
     finally:
         started.run.release()
@@ -105,6 +138,7 @@ Event = Callable[[SweepStatus, RunState], None]
 class Backend(Protocol):
     def submit(self, run: PlannedRun, path: Path) -> Any: ...
     def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]: ...
+    def stop(self) -> None: ...
     def close(self) -> None: ...
 
 
@@ -113,7 +147,7 @@ class LocalBackend:
 
     def __init__(self, workers: int):
         context = multiprocessing.get_context("spawn")
-        self.pool = ProcessPoolExecutor(workers, mp_context=context)
+        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker)
         self.pending: set[Future[dict[str, Any]]] = set()
 
     def submit(self, run: PlannedRun, path: Path) -> Any:
@@ -129,6 +163,14 @@ class LocalBackend:
                 yield future, future.result(), None
             else:
                 yield future, None, "".join(traceback.format_exception_only(error)).strip()
+
+    def stop(self) -> None:
+        """SIGTERM to every worker: each run stops at its next episode end with a checkpoint
+        (a second call stops them at once); `close` then waits for them."""
+        # the executor keeps its worker processes only in a private field
+        for process in list(getattr(self.pool, "_processes", {}).values()):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(process.pid, signal.SIGTERM)
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
@@ -166,6 +208,10 @@ class RayBackend:
             except self.ray.exceptions.RayError as error:
                 cause = getattr(error, "cause", None) or error
                 yield ref, None, f"{type(cause).__name__}: {cause}".splitlines()[0]
+
+    def stop(self) -> None:
+        """Nothing to send: `close` shuts Ray down, which ends its workers; their runs
+        continue from their last checkpoint."""
 
     def close(self) -> None:
         self.ray.shutdown()

@@ -31,6 +31,20 @@ class StopSignal:
         return 128 + self.signum if self.signum is not None else default
 
 
+Handler = Callable[[int, FrameType | None], None]
+
+
+@contextlib.contextmanager
+def _handling(handle: Handler) -> Iterator[None]:
+    """`handle` answers SIGINT and SIGTERM within the block; the old handlers come back."""
+    previous = {number: signal.signal(number, handle) for number in SIGNALS}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
 @contextlib.contextmanager
 def stop_on_signals(
     on_stop: Callable[[], None], say: Callable[[str], None]
@@ -49,9 +63,22 @@ def stop_on_signals(
         say(f"{name}: stopping cleanly (saving first; Ctrl-C again stops at once)")
         on_stop()
 
-    previous = {number: signal.signal(number, handle) for number in SIGNALS}
-    try:
+    with _handling(handle):
         yield stop
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+
+
+@contextlib.contextmanager
+def interrupt_on_signals(on_signal: Callable[[], None]) -> Iterator[StopSignal]:
+    """Within the block, every SIGINT/SIGTERM calls `on_signal` and raises
+    KeyboardInterrupt; for a command whose work runs in other processes that `on_signal`
+    tells to stop (the sweep), so that a signal sent to the command alone reaches them."""
+    stop = StopSignal()
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        if not stop.received:
+            stop.signum = signum
+        on_signal()
+        raise KeyboardInterrupt
+
+    with _handling(handle):
+        yield stop
