@@ -45,6 +45,8 @@ def test_make_config_checks_like_the_command_line():
     assert config.steps == 70_000 and config.hidden == 256  # the small preset
     with pytest.raises(ValueError, match="unknown scheme 'best'"):
         seqrank.make_config(scheme="best")
+    with pytest.raises(ValueError, match="unknown setting 'bogus'; settings are TrainConfig"):
+        seqrank.make_config(bogus=1)
 
 
 def _example(*args: str, cwd: Path, stdin: str | None = None) -> str:

@@ -79,6 +79,8 @@ def workspace(tmp_path_factory) -> Path:
     run.save_checkpoint({"labels": one_answer().state_dict()})  # all the export reads
     run.release()
     (root / "my-sweep.toml").write_text(sweep_file())
+    # the README runs its own-environment example from the repository root
+    (root / "examples").symlink_to(Path(__file__).parents[1] / "examples")
     features = [[0.0] * 6] * 50
     (root / "labels.jsonl").write_text(
         "\n".join(

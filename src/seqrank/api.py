@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -59,7 +59,14 @@ def close_preferences(
 
 def make_config(task: str = "walker_walk", scale: str = "small", **settings: Any) -> TrainConfig:
     """A run's settings as `seqrank train --task TASK --scale SCALE --KEY VALUE ...` would
-    resolve them; a ValueError names a bad value and what is accepted."""
+    resolve them; a ValueError names a bad value or an unknown setting."""
+    known = {f.name for f in fields(TrainConfig)}
+    unknown = sorted(set(settings) - known)
+    if unknown:
+        raise ValueError(
+            f"unknown setting {unknown[0]!r}; settings are TrainConfig's fields, the options "
+            "of `seqrank train` with _ for - (see help(seqrank.TrainConfig))"
+        )
     return resolve_config(task, scale, settings)
 
 

@@ -62,7 +62,7 @@ class Augment(StrEnum):
 
 
 class RewardLearner(StrEnum):
-    """How the reward ensemble learns from the labelled pairs (docs/reward-learners.md)."""
+    """How the reward ensemble learns from the labelled pairs (README "Reward learners")."""
 
     PLAIN = "plain"  # Bradley-Terry on every labelled pair (PEBBLE)
     SURF = "surf"  # + confident pseudo-labels on unlabelled pairs, temporal cropping

@@ -6,7 +6,7 @@ A segment's per-step rewards are `q * (1 + slope * (t/H - 1/2)) + noise`, clippe
 teacher has low-return pairs to skip), slope ~ N(0, 1) and noise ~ N(0, 0.02). The
 within-segment trend is what makes a myopic teacher err.
 With `augment checked` the scheme re-checks answers and the closure limits unrepeated
-answers on a path, with `seqrank train`'s default settings (`Recheck()`).
+answers on a path, by default with `seqrank train`'s settings (`Recheck()`).
 The teacher's margin is the mean segment return of the pool (the stand-in for "mean
 return of recent episodes scaled to segment length"). Truth for error rates is the
 undiscounted segment return.
@@ -92,9 +92,11 @@ def simulate_cell(
     sessions: int,
     rng: np.random.Generator,
     augment_name: str = "full",
+    checking: Recheck | None = None,
 ) -> CellResult:
+    """`checking` sets `augment checked`'s re-checks and trusted paths (default Recheck())."""
     teacher = ScriptedTeacher(teacher_preset(teacher_name))
-    recheck = None if augment_name == "full" else Recheck()
+    recheck = None if augment_name == "full" else checking or Recheck()
     stats = [run_session(scheme, teacher, questions, rng, recheck=recheck) for _ in range(sessions)]
     ppq = np.array([s.pairs_per_question for s in stats])
     max_deg = np.array([s.max_degree for s in stats], dtype=np.float64)
@@ -129,6 +131,7 @@ def simulate(
     seed: int,
     on_cell: Callable[[CellResult], None] | None = None,
     augments: Sequence[str] = ("full",),
+    checking: Recheck | None = None,
 ) -> list[CellResult]:
     """Every (scheme, augmentation, teacher) cell. Each (scheme, teacher) has its own
     stream derived from `seed`, which its augmentations share (common random numbers)."""
@@ -138,7 +141,7 @@ def simulate(
     for (scheme, teacher), stream in zip(cells, streams, strict=True):
         for augment_name in augments:
             rng = np.random.default_rng(stream)
-            cell = simulate_cell(scheme, teacher, questions, sessions, rng, augment_name)
+            cell = simulate_cell(scheme, teacher, questions, sessions, rng, augment_name, checking)
             results.append(cell)
             if on_cell is not None:
                 on_cell(cell)

@@ -187,6 +187,8 @@ CASES = [
     (["reward-bench", "run", "--pool", "missing.npz"], "pool missing.npz does not exist"),
     (["reward-bench", "run", "--pool", "m.npz", "--out", "{file}"], "pool m.npz does not exist"),
     (["reward-bench", "run", "--pool", "m.npz", "--seeds", "0"], "argument --seeds: 0 is out"),
+    (["reward-bench", "run", "--pool", "m.npz", "--budgets", "50,25"], "argument --budgets: '50"),
+    (["reward-bench", "run", "--pool", "m.npz", "--teachers", "oracle,,x"], "an empty teacher"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
     # watch, study-report
     (["watch", "{file}"], "no run directory at {file}"),

@@ -103,6 +103,21 @@ def test_simulate_json_on_stdout(tmp_path, capsys):
     assert not (tmp_path / "simulate.png").exists()
 
 
+def test_simulate_takes_the_re_check_settings_of_checked(tmp_path, capsys):
+    def ranked_oracle(*extra: str) -> dict[str, object]:
+        args = ["simulate", "--questions", "20", "--sessions", "20", "--schemes", "ranked"]
+        args += ["--teachers", "oracle", "--augment", "checked", "--out", str(tmp_path)]
+        assert main([*args, "--no-plot", "--format", "json", *extra]) == 0
+        return json.loads(capsys.readouterr().out)
+
+    default, loose = ranked_oracle(), ranked_oracle("--recheck-gain", "3", "--path-unchecked", "2")
+    assert default["parameters"]["recheck"] == {"gain": 1, "twice_gain": 20, "path_unchecked": 1}
+    assert loose["parameters"]["recheck"]["gain"] == 3
+    # fewer repeats and longer trusted paths infer more per question from the same answers
+    ppq = [r["results"][0]["pairs_per_question"] for r in (default, loose)]
+    assert ppq[1] > ppq[0] + 0.2
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -118,6 +133,7 @@ def test_simulate_json_on_stdout(tmp_path, capsys):
         ),
         (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
         (["simulate", "--sessions", "1"], "1 is out of range; accepted: 2 to 1000000"),
+        (["simulate", "--recheck-gain", "0"], "recheck settings gain 0, twice_gain 20"),
         (["fly"], "invalid choice: 'fly'"),
     ],
 )

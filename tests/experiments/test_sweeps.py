@@ -91,10 +91,36 @@ def test_baselines_add_one_run_per_task_variant_and_seed():
     assert {r.wandb for r in only.runs} == {"p"} and {r.wandb for r in sweep.runs} == {None}
 
 
+def test_qpa_variants_and_baselines_share_a_sweep_with_one_baseline_run_each():
+    sweep = expand(
+        {
+            "tasks": ["walker_walk"],
+            "schemes": ["root"],
+            "baselines": ["true"],
+            "device": "cpu",
+            "overrides": {"hybrid_replay": 0.5},
+            "variants": [{"name": "plain"}, {"name": "qpa", "query_episodes": 10}],
+        }
+    )
+    by_name = {r.name: r.config for r in sweep.runs}
+    assert sorted(by_name) == [
+        "walker_walk/root_pebble_oracle_plain_seed0",
+        "walker_walk/root_pebble_oracle_qpa_seed0",
+        "walker_walk/true-reward_plain_seed0",
+    ]
+    qpa, baseline = by_name["walker_walk/root_pebble_oracle_qpa_seed0"], by_name[sweep.runs[2].name]
+    assert (qpa.query_episodes, qpa.hybrid_replay) == (10, 0.5)
+    assert (baseline.query_episodes, baseline.hybrid_replay) == (0, 0.0)
+
+
 @pytest.mark.parametrize(
     ("data", "message"),
     [
         ({"tasks": ["walker_walk"], "schemes": ["root"], "wandb": 3}, "wandb must be a project"),
+        (
+            {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"device": "cuda"}},
+            "unknown setting 'device'; .* device at the top level",
+        ),
         ({"tasks": ["walker_walk"], "baselines": ["oracle"]}, "unknown baseline 'oracle'; "),
         ({"tasks": ["walker_walk"], "baselines": ["learned"]}, "accepted: true, none"),
         ({"tasks": ["walker_walk"], "baselines": ["true", "true"]}, "lists a name twice"),
@@ -291,6 +317,8 @@ def test_sweep_command_rejects_bad_input(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert main(["sweep", str(tmp_path / "x.toml"), "--workers", "0"]) == 2
     assert "argument --workers: 0 is out of range" in capsys.readouterr().err
+    assert main(["sweep", str(tmp_path / "x.toml"), "--ray-address", "auto"]) == 2
+    assert "--ray-address is a Ray setting: add --engine ray" in capsys.readouterr().err
 
 
 class RecordingBackend:

@@ -223,6 +223,27 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
     assert "does not exist; build one with" in capsys.readouterr().err
 
 
+def test_a_teacher_keeps_its_knobs_in_the_teacher_list():
+    from seqrank.cli.reward_bench import _teachers
+
+    assert _teachers("mistake,eps_mistake=0.2,oracle") == ["mistake,eps_mistake=0.2", "oracle"]
+    assert _teachers("beta=1,gamma=0.95") == ["beta=1,gamma=0.95"]
+    assert _teachers("oracle, noisy") == ["oracle", "noisy"]
+
+
+def test_a_grid_folder_refuses_another_pool_of_the_same_task(pool_file, tmp_path):
+    out = tmp_path / "grid"
+    run_grid([pool_file], ["pairwise"], ["oracle"], [0], SMALL, out, 1)
+    other = save_pool(synthetic_pool(seed=1), tmp_path / "other.npz")
+    with pytest.raises(ValueError, match=r"holds dmc:cartpole_swingup rows of another pool"):
+        run_grid([other], ["pairwise"], ["oracle"], [0], SMALL, out, 1)
+    with pytest.raises(ValueError, match="one pool per task"):
+        run_grid([pool_file, other], ["pairwise"], ["oracle"], [0], SMALL, tmp_path / "two", 1)
+    moved = tmp_path / "moved.npz"  # the same pool under another name is the same pool
+    moved.write_bytes(pool_file.read_bytes())
+    assert len(run_grid([moved], ["pairwise"], ["oracle"], [0], SMALL, out, 1)) == 2
+
+
 def test_exported_labels_are_scored_on_a_pool(pool_file, tmp_path, capsys):
     """A label file (the labelling page's JSONL): one sequential session answered by the
     true returns, scored after its session."""

@@ -21,14 +21,30 @@ SCHEMES = [s.value for s in SchemeName]
 LEARNERS = [learner.value for learner in RewardLearner]
 
 
-def _numbers(text: str) -> list[int]:
+def _budgets(text: str) -> list[int]:
     try:
         values = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: give whole numbers, comma-separated") from None
-    if not values:
-        raise argparse.ArgumentTypeError("give at least one number")
+    if not values or values[0] < 1 or values != sorted(set(values)):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: give question counts of at least 1 that rise strictly, e.g. 25,50,100"
+        )
     return values
+
+
+def _teachers(text: str) -> list[str]:
+    """Teachers, comma-separated; a `knob=value` part belongs to the teacher before it, so
+    `mistake,eps_mistake=0.2,oracle` is two teachers (knobs first: changes to the oracle)."""
+    teachers: list[str] = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            raise argparse.ArgumentTypeError(f"{text!r}: an empty teacher between commas")
+        if "=" in part and teachers:
+            teachers[-1] += f",{part}"
+        else:
+            teachers.append(part)
+    return teachers
 
 
 def add_parser(commands: Any) -> None:
@@ -42,20 +58,52 @@ def add_parser(commands: Any) -> None:
     )
     actions = bench.add_subparsers(dest="action", required=True)
     pool = actions.add_parser("pool", help="build a pool: a true-reward run's episodes + random")
-    pool.add_argument("--task", default="walker_walk")
-    pool.add_argument("--from-run", type=Path, help="take the episodes of this run directory")
     pool.add_argument(
-        "--steps", type=int_between(1, 10**8), default=50_000, help="true-reward training steps"
+        "--task",
+        default="walker_walk",
+        help="the task of the true-reward run that is trained for the pool (walker_walk); "
+        "ignored with --from-run, whose task it is",
     )
-    pool.add_argument("--seed", type=seed_number, default=0)
-    pool.add_argument("--random-episodes", type=int_between(0, 10_000), default=5)
+    pool.add_argument(
+        "--from-run",
+        type=Path,
+        help="take the episodes this run directory kept (its episodes_kept) instead of "
+        "training one",
+    )
+    pool.add_argument(
+        "--steps",
+        type=int_between(1, 10**8),
+        default=50_000,
+        help="true-reward training steps, on the CPU, in <out>.run/ (50000)",
+    )
+    pool.add_argument("--seed", type=seed_number, default=0, help="(0)")
+    pool.add_argument(
+        "--random-episodes",
+        type=int_between(0, 10_000),
+        default=5,
+        help="episodes of random actions added to the pool (5)",
+    )
     pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
     pool.set_defaults(handler=run_pool)
 
     grid = actions.add_parser("run", help="run the grid and print the table")
-    grid.add_argument("--pool", type=Path, action="append", required=True, help="repeatable")
-    grid.add_argument("--schemes", type=names(SCHEMES, "scheme"), default=SCHEMES)
-    grid.add_argument("--teachers", type=lambda t: t.split(","), default=["oracle"])
+    grid.add_argument(
+        "--pool", type=Path, action="append", required=True, help="a pool file; repeatable"
+    )
+    grid.add_argument(
+        "--schemes",
+        type=names(SCHEMES, "scheme"),
+        default=SCHEMES,
+        help=f"comma-separated ({','.join(SCHEMES)})",
+    )
+    grid.add_argument(
+        "--teachers",
+        type=_teachers,
+        default=["oracle"],
+        help="scripted teachers, comma-separated: presets (oracle, mistake, noisy, skip, "
+        "myopic, equal), each optionally followed by its knobs, e.g. "
+        "oracle,mistake,eps_mistake=0.2 (oracle)",
+    )
     grid.add_argument(
         "--learners",
         type=names(LEARNERS, "learner"),
@@ -67,15 +115,43 @@ def add_parser(commands: Any) -> None:
         "--augments",
         type=names(["full", "checked"], "augmentation"),
         default=["full"],
-        help="full (the paper's closure), checked (noise-aware augmentation), comma-separated",
+        help="full (the paper's closure), checked (noise-aware augmentation), "
+        "comma-separated (full)",
     )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
-    grid.add_argument("--budgets", type=_numbers, default=[25, 50, 100, 200])
-    grid.add_argument("--session-questions", type=positive, default=25)
-    grid.add_argument("--heldout-segments", type=int_between(10, 10**6), default=300)
-    grid.add_argument("--reward-epochs", type=int_between(1, 10_000), default=30)
-    grid.add_argument("--workers", type=int_between(1, 1024), default=os.cpu_count() or 1)
-    grid.add_argument("--out", type=Path, default=Path("seqrank-out/reward-bench"))
+    grid.add_argument(
+        "--budgets",
+        type=_budgets,
+        default=[25, 50, 100, 200],
+        help="question counts at which the reward model is trained and measured (25,50,100,200)",
+    )
+    grid.add_argument(
+        "--session-questions", type=positive, default=25, help="questions per session (25)"
+    )
+    grid.add_argument(
+        "--heldout-segments",
+        type=int_between(10, 10**6),
+        default=300,
+        help="held-out segments the measures are taken on (300)",
+    )
+    grid.add_argument(
+        "--reward-epochs",
+        type=int_between(1, 10_000),
+        default=30,
+        help="most epochs of reward training per budget (30)",
+    )
+    grid.add_argument(
+        "--workers",
+        type=int_between(1, 1024),
+        default=os.cpu_count() or 1,
+        help="cells at a time, one process and one thread each (the number of cores)",
+    )
+    grid.add_argument(
+        "--out",
+        type=Path,
+        default=Path("seqrank-out/reward-bench"),
+        help="the grid's folder; the same command continues it (seqrank-out/reward-bench)",
+    )
     grid.set_defaults(handler=run_grid)
 
     score = actions.add_parser("score", help="score exported labels (JSONL) on a pool")

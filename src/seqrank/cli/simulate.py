@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ from rich.console import Console
 from seqrank import console_tables
 from seqrank.cli.options import int_between, names, seed_number
 from seqrank.errors import UsageError
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
 from seqrank.simulate import AUGMENTS, simulate
@@ -52,6 +54,18 @@ def add_parser(commands: Any) -> None:
         help="comma-separated, from: full (the paper's closure), checked (noise-aware: "
         "re-checks and fewer unrepeated answers per inferred pair) (default: full)",
     )
+    checking = Recheck()
+    for flag, default, meaning in (
+        ("--recheck-gain", checking.gain, "re-ask an answer that would imply this many new pairs"),
+        ("--recheck-twice-gain", checking.twice_gain, "... twice from this many on"),
+        ("--path-unchecked", checking.path_unchecked, "unrepeated answers on an inferred path"),
+    ):
+        sim.add_argument(
+            flag,
+            type=int_between(0, 1_000_000),
+            default=default,
+            help=f"with --augment checked: {meaning} (default: %(default)s)",
+        )
     sim.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     sim.add_argument(
         "--out",
@@ -74,6 +88,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
 
     try:
         check_folder(args.out, "--out")
+        checking = Recheck(args.recheck_gain, args.recheck_twice_gain, args.path_unchecked)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     with console_tables.progress_bar(err) as progress:
@@ -87,6 +102,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             args.seed,
             on_cell=lambda cell: progress.advance(task),
             augments=args.augment,
+            checking=checking,
         )
     args.out.mkdir(parents=True, exist_ok=True)
     payload = {
@@ -96,6 +112,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "schemes": args.schemes,
             "teachers": args.teachers,
             "augment": args.augment,
+            "recheck": asdict(checking),
             "seed": args.seed,
         },
         "results": [cell.as_dict() for cell in results],

@@ -58,6 +58,17 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.sweeps.engines import changed_runs
     from seqrank.sweeps.spec import load_sweep
 
+    ray_only = [
+        flag
+        for flag, given in (
+            ("--ray-address", args.ray_address is not None),
+            ("--cpus-per-run", args.cpus_per_run != 1.0),
+            ("--gpus-per-run", args.gpus_per_run != 0.0),
+        )
+        if given
+    ]
+    if ray_only and args.engine != "ray":
+        raise UsageError(f"{ray_only[0]} is a Ray setting: add --engine ray")
     try:
         sweep = load_sweep(args.spec)
         check_folder(sweep.out, "sweep folder")

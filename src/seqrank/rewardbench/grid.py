@@ -4,6 +4,7 @@ continues where it stopped and never repeats a finished cell."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -44,6 +45,34 @@ def _check_settings(out: Path, settings: BenchSettings) -> None:
         path.write_text(json.dumps(record, indent=2) + "\n")
 
 
+def _check_pools(out: Path, tasks: dict[str, str]) -> None:
+    """A folder's rows of a task come from one pool, known by its content's hash
+    (`pools.json`): rows are keyed by task, so a second pool would be taken for done."""
+    path = out / "pools.json"
+    saved: dict[str, dict[str, str]] = json.loads(path.read_text()) if path.exists() else {}
+    given: dict[str, dict[str, str]] = {}
+    for pool, task in tasks.items():
+        record = {"file": pool, "sha256": _file_hash(Path(pool))}
+        if task in given and given[task]["sha256"] != record["sha256"]:
+            raise ValueError(f"--pool {given[task]['file']} and {pool}: one pool per task")
+        known = saved.get(task)
+        if known is not None and known["sha256"] != record["sha256"]:
+            raise ValueError(
+                f"{out} holds {task} rows of another pool ({known['file']} then, not the "
+                f"content of {pool}); use another --out for this pool"
+            )
+        given[task] = record
+    path.write_text(json.dumps({**saved, **given}, indent=2) + "\n")
+
+
+def _file_hash(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 def _cell_rows(pool_path: str, cell: Cell, record: dict[str, Any]) -> list[dict[str, Any]]:
     import torch
 
@@ -67,6 +96,7 @@ def run_grid(
     """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
     tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
     _check_settings(out, settings)
+    _check_pools(out, tasks)
     rows_path = out / "rows.jsonl"
     rows = read_rows(rows_path)
     rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line

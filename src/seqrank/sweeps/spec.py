@@ -28,13 +28,18 @@ max_feedback = 100
 Every run is one `seqrank train` run directory: `<out>/runs/<task>/<scheme>_<backbone>_
 <teacher>[_<variant>]_seed<seed>`; a baseline run (one per task, variant and seed, whatever
 the schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>[_<variant>]_
-seed<seed>`, and `schemes` may be left out when `baselines` is given. Expansion checks
+seed<seed>`, and `schemes` may be left out when `baselines` is given. A baseline leaves out
+the settings that act only while feedback is asked for (QPA's), and of baseline runs that
+come out alike (variants that differ only in feedback settings) the first is kept. Settings
+of one run: [overrides] < [task_overrides.<task>] < its variant < its axes. Expansion checks
 every run's settings up front, so a bad value is reported before anything starts.
 """
 
 from __future__ import annotations
 
+import json
 import tomllib
+from collections.abc import Iterable
 from dataclasses import dataclass, fields
 from itertools import product
 from pathlib import Path
@@ -62,7 +67,10 @@ TOP_KEYS = (
 )
 AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
 AXIS_SETTINGS = {"task", "scheme", "backbone", "teacher", "reward", "seed"}
-SETTINGS = {f.name for f in fields(TrainConfig)} - AXIS_SETTINGS
+SETTINGS = {f.name for f in fields(TrainConfig)} - AXIS_SETTINGS - {"device"}
+# settings that act only while feedback is asked for: a baseline run leaves them out, so one
+# sweep can hold QPA runs and the baselines they are compared with
+FEEDBACK_ONLY = ("query_episodes", "hybrid_replay")
 # int and float settings, and the rest given as strings (choices are checked by the config)
 _KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in fields(TrainConfig)}
 
@@ -130,10 +138,23 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
     methods = _methods(axes, baselines)
     grid = product(axes["tasks"], methods, variants, seeds)
     planned = _Planned(source, scale, device, wandb, overrides, per_task)
-    runs = [planned.run(task, method, variant, seed) for task, method, variant, seed in grid]
+    runs = _once(planned.run(task, method, variant, seed) for task, method, variant, seed in grid)
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)
+
+
+def _once(runs: Iterable[PlannedRun]) -> list[PlannedRun]:
+    """The runs, less a baseline run whose settings equal an earlier one's: variants that
+    change only feedback settings leave the baselines alike, and one run of each is enough."""
+    kept: list[PlannedRun] = []
+    seen: set[str] = set()
+    for run in runs:
+        key = json.dumps(run.config.as_dict(), sort_keys=True, default=str)
+        if run.config.reward.asks or key not in seen:
+            kept.append(run)
+            seen.add(key)
+    return kept
 
 
 Method = tuple[str, dict[str, str]]  # a run name's method part, and its axis settings
@@ -168,7 +189,10 @@ class _Planned:
             "seed": seed,
             "device": self.device,
         }
-        where = f"{self.source}: run {task} {name} {variant_name or ''} seed {seed}"
+        if "reward" in axis_values:  # a baseline: it asks nothing
+            settings = {k: v for k, v in settings.items() if k not in FEEDBACK_ONLY}
+        shown = " ".join(part for part in (task, name, variant_name) if part)
+        where = f"{self.source}: run {shown} seed {seed}"
         try:
             config = resolve_config(task, self.scale, settings)
             if self.device in ("cpu", "cuda"):  # with auto the path depends on where it runs
@@ -244,7 +268,8 @@ def _settings(table: Any, where: str) -> dict[str, Any]:
     if unknown:
         raise ValueError(
             f"{where}: unknown setting {unknown[0]!r}; settings are `seqrank train` options "
-            "(task, scheme, backbone, teacher and seed are sweep axes)"
+            "(task, scheme, backbone, teacher and seed are sweep axes, reward is set by "
+            "`baselines`, device at the top level)"
         )
     for key, value in table.items():
         kind = _KIND[key]
