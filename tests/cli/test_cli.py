@@ -143,3 +143,15 @@ def test_bad_arguments_give_one_clear_line_and_exit_2(args, message):
     assert message in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert "Traceback" not in result.stderr
+
+
+def test_every_train_setting_says_what_it_means_in_help():
+    from dataclasses import fields
+
+    from seqrank.cli.option_help import MEANINGS
+    from seqrank.config import TrainConfig
+
+    settings = {f.name for f in fields(TrainConfig)} - {"scale"}  # --scale has its own help
+    assert settings == set(MEANINGS)
+    shown = run_cli("train", "--help")
+    assert "QPA: cut new segments from the last N episodes only" in " ".join(shown.stdout.split())

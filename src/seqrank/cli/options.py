@@ -8,6 +8,7 @@ from dataclasses import Field, fields
 from pathlib import Path
 from typing import Any, NoReturn
 
+from seqrank.cli.option_help import MEANINGS
 from seqrank.config import SCALES, TrainConfig
 
 # TrainConfig field annotations (strings under `from __future__ import annotations`) -> types.
@@ -169,5 +170,5 @@ def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None
             type=field_type(f),
             default=argparse.SUPPRESS,
             metavar=field_type(f).__name__.upper(),
-            help=f"default: {f.default} (or the preset's)",
+            help=f"{MEANINGS.get(f.name, '')} (default: {f.default} or the preset's)",
         )
