@@ -105,9 +105,10 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
         figsize=(4.6 * len(MEASURES), 3.6 * len(teachers)),
         squeeze=False,
     )
+    lines = list(dict.fromkeys((e["scheme"], e["learner"]) for e in entries))
     for row, teacher in zip(axes, teachers, strict=True):
         for axis, (measure, title) in zip(row, MEASURES.items(), strict=True):
-            for scheme, learner in dict.fromkeys((e["scheme"], e["learner"]) for e in entries):
+            for k, (scheme, learner) in enumerate(lines):  # one colour per line in every panel
                 points = [
                     (e["questions"], *e[measure])
                     for e in entries
@@ -118,8 +119,8 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
                     continue
                 x, mean, low, high = (np.array(column) for column in zip(*points, strict=True))
                 label = scheme if len(learners) == 1 else f"{scheme} ({learner})"
-                (line,) = axis.plot(x, mean, marker="o", label=label)
-                axis.fill_between(x, low, high, color=line.get_color(), alpha=0.2)
+                axis.plot(x, mean, marker="o", label=label, color=f"C{k % 10}")
+                axis.fill_between(x, low, high, color=f"C{k % 10}", alpha=0.2)
             axis.set_title(f"{teacher}: {title}", fontsize=10)
             axis.set_xlabel("questions asked")
             axis.grid(alpha=0.3)
