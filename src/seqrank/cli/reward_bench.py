@@ -57,6 +57,12 @@ def add_parser(commands: Any) -> None:
         "preference accuracy, Spearman rank correlation, wrong inferred labels.",
     )
     actions = bench.add_subparsers(dest="action", required=True)
+    _add_pool(actions)
+    _add_grid(actions)
+    _add_score(actions)
+
+
+def _add_pool(actions: Any) -> None:
     pool = actions.add_parser("pool", help="build a pool: a true-reward run's episodes + random")
     pool.add_argument(
         "--task",
@@ -86,6 +92,8 @@ def add_parser(commands: Any) -> None:
     pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
     pool.set_defaults(handler=run_pool)
 
+
+def _add_grid(actions: Any) -> None:
     grid = actions.add_parser("run", help="run the grid and print the table")
     grid.add_argument(
         "--pool", type=Path, action="append", required=True, help="a pool file; repeatable"
@@ -119,6 +127,12 @@ def add_parser(commands: Any) -> None:
         "comma-separated (full)",
     )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
+    _add_grid_sizes(grid)
+    grid.set_defaults(handler=run_grid)
+
+
+def _add_grid_sizes(grid: argparse.ArgumentParser) -> None:
+    """How much each cell asks and trains, and where the grid runs and writes."""
     grid.add_argument(
         "--budgets",
         type=_budgets,
@@ -152,8 +166,9 @@ def add_parser(commands: Any) -> None:
         default=Path("seqrank-out/reward-bench"),
         help="the grid's folder; the same command continues it (seqrank-out/reward-bench)",
     )
-    grid.set_defaults(handler=run_grid)
 
+
+def _add_score(actions: Any) -> None:
     score = actions.add_parser("score", help="score exported labels (JSONL) on a pool")
     score.add_argument("labels", type=Path, help="a label file from `seqrank labels export`")
     score.add_argument("--pool", type=Path, required=True, help="a pool of the same task")

@@ -54,18 +54,7 @@ def add_parser(commands: Any) -> None:
         help="comma-separated, from: full (the paper's closure), checked (noise-aware: "
         "re-checks and fewer unrepeated answers per inferred pair) (default: full)",
     )
-    checking = Recheck()
-    for flag, default, meaning in (
-        ("--recheck-gain", checking.gain, "re-ask an answer that would imply this many new pairs"),
-        ("--recheck-twice-gain", checking.twice_gain, "... twice from this many on"),
-        ("--path-unchecked", checking.path_unchecked, "unrepeated answers on an inferred path"),
-    ):
-        sim.add_argument(
-            flag,
-            type=int_between(0, 1_000_000),
-            default=default,
-            help=f"with --augment checked: {meaning} (default: %(default)s)",
-        )
+    _add_checking(sim)
     sim.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     sim.add_argument(
         "--out",
@@ -81,6 +70,22 @@ def add_parser(commands: Any) -> None:
         help="what to print on stdout (the JSON file is written either way)",
     )
     sim.set_defaults(handler=run)
+
+
+def _add_checking(sim: argparse.ArgumentParser) -> None:
+    """`--augment checked`'s settings, with `seqrank train`'s defaults."""
+    checking = Recheck()
+    for flag, default, meaning in (
+        ("--recheck-gain", checking.gain, "re-ask an answer that would imply this many new pairs"),
+        ("--recheck-twice-gain", checking.twice_gain, "... twice from this many on"),
+        ("--path-unchecked", checking.path_unchecked, "unrepeated answers on an inferred path"),
+    ):
+        sim.add_argument(
+            flag,
+            type=int_between(0, 1_000_000),
+            default=default,
+            help=f"with --augment checked: {meaning} (default: %(default)s)",
+        )
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
