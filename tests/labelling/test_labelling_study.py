@@ -15,6 +15,7 @@ TINY = [
     "--reward-batch", "5", "--hidden", "32", "--batch", "32", "--reward-hidden", "32",
     "--reward-epochs", "5", "--eval-every", "900", "--eval-episodes", "1",
     "--heldout-pairs", "50", "--device", "cpu", "--countdown", "0", "--port", "0",
+    "--size", "64",  # small clips: the page, not the picture, is under test
 ]  # fmt: skip
 
 

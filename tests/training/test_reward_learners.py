@@ -19,8 +19,8 @@ CASES = {  # (settings, kill at, checkpoint resumed from)
         1000,
     ),
     # RIME with its warm start on the fast path (run here on the CPU), resumed after its
-    # first two sessions: the restored selection state must carry on as it was
-    "rime": (dict(reward_learner="rime", warm_start=1, path="fast"), 2500, 2000),
+    # first two sessions (1200, 1700): the restored selection state must carry on as it was
+    "rime": (dict(reward_learner="rime", warm_start=1, path="fast", steps=2400), 2100, 2000),
 }
 
 
