@@ -231,6 +231,24 @@ def test_a_teacher_keeps_its_knobs_in_the_teacher_list():
     assert _teachers("oracle, noisy") == ["oracle", "noisy"]
 
 
+@pytest.mark.parametrize(
+    ("teacher", "said", "not_said"),
+    [
+        ("bogus", "unknown teacher 'bogus'; accepted: oracle, mistake", "human"),
+        ("human", "the grid asks scripted teachers only", "unknown"),
+        ("replay:labels.jsonl", "are scored with `seqrank reward-bench score`", "unknown"),
+    ],
+)
+def test_the_grid_names_a_bad_teacher_and_offers_only_scripted_ones(
+    pool_file, tmp_path, capsys, teacher, said, not_said
+):
+    args = ["reward-bench", "run", "--pool", str(pool_file), "--teachers", teacher]
+    assert main([*args, "--out", str(tmp_path / "grid")]) == 2
+    error = capsys.readouterr().err
+    assert said in error and not_said not in error
+    assert not (tmp_path / "grid").exists()
+
+
 def test_a_grid_folder_refuses_another_pool_of_the_same_task(pool_file, tmp_path):
     out = tmp_path / "grid"
     run_grid([pool_file], ["pairwise"], ["oracle"], [0], SMALL, out, 1)

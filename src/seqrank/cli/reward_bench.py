@@ -228,7 +228,7 @@ def _train_for_pool(args: argparse.Namespace, err: Console) -> Path:
 
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_folder
-    from seqrank.feedback.teachers import parse_teacher
+    from seqrank.feedback.teachers import parse_scripted_teacher
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import run_grid as grid
     from seqrank.rewardbench.pool import load_pool
@@ -239,8 +239,12 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             load_pool(path)  # each pool checked before anything is made
         check_folder(args.out, "--out")
         for teacher in args.teachers:
-            if parse_teacher(teacher).kind != "scripted":
-                raise ValueError(f"teacher {teacher!r}: the grid asks scripted teachers only")
+            if teacher == "human" or teacher.startswith("replay:"):
+                raise ValueError(
+                    f"teacher {teacher!r}: the grid asks scripted teachers only (labels from "
+                    "the page are scored with `seqrank reward-bench score`)"
+                )
+            parse_scripted_teacher(teacher)
         settings = BenchSettings(
             tuple(args.budgets),
             args.session_questions,

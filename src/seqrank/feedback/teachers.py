@@ -166,6 +166,15 @@ def parse_teacher(value: str) -> TeacherSpec:
         if not path:
             raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
         return TeacherSpec("replay", replay_file=path, short_name="replay")
+    others = (
+        ", knob=value,..., human (the labelling page) or replay:FILE (labels exported as JSONL)"
+    )
+    return parse_scripted_teacher(value, others)
+
+
+def parse_scripted_teacher(value: str, others: str = " or knob=value,...") -> TeacherSpec:
+    """A scripted teacher's spec: a preset, optionally with knobs, or knobs alone; `others`
+    ends the list of what is accepted in the error (the caller's other kinds of teacher)."""
     parts = [part.strip() for part in value.split(",")]
     base, name = TeacherConfig(), "custom"
     if parts and "=" not in parts[0]:
@@ -173,8 +182,7 @@ def parse_teacher(value: str) -> TeacherSpec:
         if name not in TEACHER_PRESETS:
             raise ValueError(
                 f"unknown teacher {name!r}; accepted: {', '.join(TEACHER_PRESETS)} (optionally "
-                "followed by ,knob=value), knob=value,..., human (the labelling page) or "
-                "replay:FILE (labels exported as JSONL)"
+                f"followed by ,knob=value){others}"
             )
         base = TEACHER_PRESETS[name]
     knobs = dict(_knob(part, value) for part in parts)
