@@ -190,7 +190,7 @@ def train_answered(trainer, hub, answerer: Answerer) -> dict:
 def online_trainer(path, wait: bool, **overrides):
     config = tiny_config(teacher="human", record_states=1, **overrides)
     run = RunDir.create(path, config, "cpu")
-    hub = open_hub(path, config.task, ServerOptions(countdown_s=0))
+    hub = open_hub(path, config.task, ServerOptions(countdown_s=0, size=64))
     trainer = Trainer(
         config, run, source=HumanSource(hub, "online", config.seed), wait_for_feedback=wait
     )
@@ -311,7 +311,7 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
     assert len(first_answers) == 14
 
     run = RunDir.open(path)
-    hub = open_hub(path, run.read_config().task, ServerOptions(countdown_s=0))
+    hub = open_hub(path, run.read_config().task, ServerOptions(countdown_s=0, size=64))
     resumed = Trainer(run.read_config(), run, source=HumanSource(hub, "online", 3))
     resumed.load_checkpoint(run.load_checkpoint())
     answerer = Answerer(page_client(hub))
