@@ -9,7 +9,7 @@ MEANINGS = {
     "module.path:factory",
     "scheme": "how questions are asked: pairwise, sequential, root, ranked",
     "teacher": "oracle, mistake, noisy, skip, myopic, equal (optionally ,knob=value...), "
-    "replay:FILE, or human",
+    "or replay:FILE (a person answers through `seqrank label online`)",
     "reward": "learned (from preferences); true (the environment's reward) or none (the "
     "untrained reward model): baselines that ask nothing",
     "backbone": "pebble or mrn",
