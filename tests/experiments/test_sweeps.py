@@ -430,3 +430,23 @@ def test_sigterm_to_the_sweep_process_alone_stops_its_runs_with_a_checkpoint(tmp
     with DirLock(first, "run directory"):  # the worker has let go of the run
         pass
     assert not (second / "metrics.jsonl").exists()
+
+
+def test_runs_start_seed_by_seed_so_a_stopped_sweep_leaves_every_method_the_same_seeds():
+    sweep = expand(
+        {
+            "tasks": ["walker_walk"],
+            "schemes": ["pairwise", "root"],
+            "baselines": ["true"],
+            "seeds": [3, 1],
+            "device": "cpu",
+        }
+    )
+    assert [r.name for r in sweep.runs] == [
+        "walker_walk/pairwise_pebble_oracle_seed3",
+        "walker_walk/root_pebble_oracle_seed3",
+        "walker_walk/true-reward_seed3",
+        "walker_walk/pairwise_pebble_oracle_seed1",
+        "walker_walk/root_pebble_oracle_seed1",
+        "walker_walk/true-reward_seed1",
+    ]

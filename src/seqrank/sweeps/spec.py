@@ -136,9 +136,10 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
 
         scale = resolve_scale(scale, resolve_device(device))
     methods = _methods(axes, baselines)
-    grid = product(axes["tasks"], methods, variants, seeds)
+    # seed by seed: a sweep stopped part way leaves every method with the same seeds done
+    grid = product(seeds, axes["tasks"], methods, variants)
     planned = _Planned(source, scale, device, wandb, overrides, per_task)
-    runs = _once(planned.run(task, method, variant, seed) for task, method, variant, seed in grid)
+    runs = _once(planned.run(task, method, variant, seed) for seed, task, method, variant in grid)
     name = str(data.get("name", Path(source).stem))
     out = Path(data.get("out", Path("seqrank-out/sweeps") / name))
     return Sweep(name, out, tuple(runs), retries, device)
