@@ -55,7 +55,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         try:
             started = prepare_run(args, err, Trainer, resolve_device)
         except (ValueError, FileNotFoundError, FileExistsError) as problem:
-            raise UsageError(str(problem)) from None
+            raise UsageError(_as_flag(str(problem), given_settings(args))) from None
         except KeyboardInterrupt:
             return stop.exit_code()
         if started is None:
@@ -150,6 +150,17 @@ def prepare_run(
     started = start_new(path, config, str(new.device), trainer_cls, wandb)
     err.print(f"run directory: {path} ({new.scale} preset, device {new.device})")
     return started
+
+
+def _as_flag(message: str, given: dict[str, Any]) -> str:
+    """A settings error names the setting ("steps must be ..."); on the command line the
+    user typed a flag, so name that ("--steps must be ...")."""
+    for name in given:
+        flag = f"--{name.replace('_', '-')}"
+        for lead in ("", "unknown "):
+            if message.startswith(f"{lead}{name} "):
+                return f"{lead}{flag}{message[len(lead) + len(name) :]}"
+    return message
 
 
 def _refuse_new_settings(args: argparse.Namespace) -> None:
