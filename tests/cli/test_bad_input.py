@@ -97,6 +97,13 @@ CASES = [
     ([*TRAIN, "--rime-decay-updates", "0"], "--rime-decay-updates must be a whole number from 1"),
     ([*TRAIN, "--warm-start", "2"], "--warm-start must be a whole number from 0 to 1, got 2"),
     ([*TRAIN, "--segment-length", "5000"], "--segment-length 5000 is longer than an episode"),
+    # --dry-run makes the checks that need the task's environment too
+    ([*TRAIN, "--dry-run", "--segment-length", "5000"], "--segment-length 5000 is longer than"),
+    ([*TRAIN, "--dry-run", "--seed-steps", "10", "--unsup-steps", "0"], "before the first"),
+    (
+        [*TRAIN, "--dry-run", "--steps", "2147483647", "--feedback-frequency", "100000000"],
+        "--steps 2147483647: the replay buffer keeps every step",
+    ),
     ([*TRAIN, "--teacher", "replay:missing.jsonl"], "label file missing.jsonl does not exist"),
     ([*TRAIN, "--teacher", "perfect"], "unknown --teacher 'perfect'; accepted: oracle"),
     ([*TRAIN, "--task", "walker"], "unknown --task 'walker'; accepted: walker_walk"),

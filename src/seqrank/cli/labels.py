@@ -15,8 +15,13 @@ from seqrank.errors import UsageError
 def add_parser(commands: Any) -> None:
     labels = commands.add_parser("labels", help="export or import labels as JSONL")
     actions = labels.add_subparsers(dest="action", required=True, parser_class=Parser)
-    export = actions.add_parser("export", help="write a labelling directory's answers as JSONL")
-    export.add_argument("directory", type=Path, help="holds labels.sqlite")
+    export = actions.add_parser(
+        "export",
+        help="write the answers of a labelling or run directory as JSONL",
+    )
+    export.add_argument(
+        "directory", type=Path, help="a labelling directory (labels.sqlite) or a run directory"
+    )
     export.add_argument("-o", "--output", type=Path, required=True)
     load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
     load.add_argument("file", type=Path)

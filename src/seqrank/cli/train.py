@@ -141,6 +141,7 @@ def prepare_run(
     if wandb is not None:
         _check_wandb(wandb)
     if args.dry_run:
+        _check_with_env(config)
         if config.teacher_spec.kind == "replay":
             from seqrank.feedback.sources import make_source
 
@@ -150,6 +151,18 @@ def prepare_run(
     started = start_new(path, config, str(new.device), trainer_cls, wandb)
     err.print(f"run directory: {path} ({new.scale} preset, device {new.device})")
     return started
+
+
+def _check_with_env(config: TrainConfig) -> None:
+    """The checks a run makes once its environment is built (episode length, memory)."""
+    from seqrank.envs import make_env
+    from seqrank.training.trainer import check_fits
+
+    env = make_env(config.task, config.seed)
+    try:
+        check_fits(config, env)
+    finally:
+        env.close()
 
 
 def _as_flag(message: str, given: dict[str, Any]) -> str:

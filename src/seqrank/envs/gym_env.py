@@ -50,7 +50,8 @@ def load_factory(spec: str) -> Callable[[], gym.Env[Any, Any]]:
     except ImportError as error:
         raise ValueError(
             f"task {spec!r}: cannot import module {module_name!r} ({error}); a custom task "
-            "is 'module.path:factory' with the module importable (on PYTHONPATH)"
+            "is 'module.path:factory' with the module importable (on PYTHONPATH or in the current "
+            "directory)"
         ) from None
     factory = getattr(module, attribute, None)
     if not callable(factory):

@@ -16,7 +16,7 @@ from seqrank.agents.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
 from seqrank.choices import RewardSignal
 from seqrank.config import TrainConfig
-from seqrank.envs import make_env
+from seqrank.envs import SimEnv, make_env
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan
@@ -39,7 +39,7 @@ from seqrank.training.finetune import refill_for_part, start_from
 from seqrank.training.pretrain import EntropyPretraining
 from seqrank.training.reward_phase import RewardLearning, RewardSettings
 from seqrank.training.runs import RunDir
-from seqrank.training.runtime import resolve_runtime
+from seqrank.training.runtime import Runtime, resolve_runtime
 from seqrank.training.sessions import FeedbackSessions, Schedule
 from seqrank.training.state import Counters
 
@@ -69,21 +69,14 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.env = make_env(config.task, config.seed)
         self.eval_env = make_env(config.task, config.seed)
-        # a fine-tuning run starts with the saved run's episodes: its first session needs none
-        started = bool(config.start_from)
-        _check_episode_fits(config, self.env.episode_length, self.env.has_terminals or started)
         self.start_state = (
-            RunDir.open(Path(config.start_from)).load_checkpoint() if started else None
+            RunDir.open(Path(config.start_from)).load_checkpoint() if config.start_from else None
         )
         kept = 0 if self.start_state is None else int(self.start_state["replay"]["size"])
-        self.runtime = runtime = resolve_runtime(
-            config.device, config.path, config.precision, self.env.discrete
-        )
+        self.runtime = runtime = check_fits(config, self.env, kept)
         self.fast, device = runtime.fast, runtime.device
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
-        # the reference path keeps the buffer on the host and copies each batch over
         storage = device if runtime.fast else torch.device("cpu")
-        _check_replay_fits(kept + config.steps, obs_dim, act_dim, storage)
         self.agent = make_agent(config, self.env, runtime)
         self.reward_model = RewardModel(
             config.reward_ensemble,
@@ -227,6 +220,19 @@ class Trainer:
 
     def load_checkpoint(self, state: dict[str, Any]) -> None:
         load_checkpoint(self, state)
+
+
+def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
+    """What can be checked only with the task's environment at hand (`--dry-run` checks it
+    too): segments fit an episode, the replay buffer (`kept` steps of a fine-tuned run's
+    plus the run's) fits memory; returns where and how the run trains."""
+    # a fine-tuning run starts with the saved run's episodes: its first session needs none
+    _check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
+    runtime = resolve_runtime(config.device, config.path, config.precision, env.discrete)
+    # the reference path keeps the buffer on the host and copies each batch over
+    storage = runtime.device if runtime.fast else torch.device("cpu")
+    _check_replay_fits(kept + config.steps, env.obs_dim, env.act_dim, storage)
+    return runtime
 
 
 def _check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
