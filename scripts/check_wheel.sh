@@ -21,7 +21,7 @@ echo "check_wheel: building"
 .venv/bin/python -m pip wheel --quiet --no-deps --wheel-dir "$work/dist" "$source_tree"
 wheel=$(ls "$work"/dist/seqrank-*.whl)
 for member in seqrank/labelling/static/index.html seqrank/labelling/static/app.js \
-    seqrank/labelling/static/app.css; do
+    seqrank/labelling/static/app.css seqrank/true_reward_reference.json; do
     .venv/bin/python -c "import sys, zipfile; sys.exit('$member' not in zipfile.ZipFile('$wheel').namelist())" \
         || { echo "check_wheel: $wheel lacks $member"; exit 1; }
 done

@@ -255,6 +255,8 @@ def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet:
 
 
 def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
+    from seqrank.envs import canonical_task
+
     reward = RewardSignal(summary.get("reward", "learned"))
     method = (
         f"{summary['scheme']} scheme, {summary['teacher']} teacher, {summary['backbone']}"
@@ -277,6 +279,8 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
         ("wall time", f"{summary['wall_seconds'] / 60:.1f} min"),
         ("steps per second", f"{summary['steps_per_second']:.0f}"),
     ]
+    if canonical_task(summary["task"])[0] == "dmc":
+        rows.pop(3)  # DMControl has no success signal: its rate is always 0
     rows[3:3] = _reference_rows(summary, run) if reward.asks and final is not None else []
     for name, value in rows:
         table.add_row(name, value)
@@ -301,7 +305,8 @@ def _reference_rows(summary: dict[str, Any], run: RunDir) -> list[tuple[str, str
     reference = reference_for(run.read_config().as_dict(), summary["steps"])
     if reference is None:
         return [("true-reward agent", "not measured for these settings (--reward true)")]
-    return [
-        ("true-reward agent, same step (measured)", reference.describe()),
-        ("  measured in", reference.measured.split(":")[0]),
-    ]
+    rows = [("true-reward agent, same step (measured)", reference.describe())]
+    if reference.mean > 0:
+        share = summary["final_eval_return"] / reference.mean
+        rows.append(("  this run's final return / its mean", f"{share:.2f}"))
+    return [*rows, ("  measured in", reference.measured.split(":")[0])]
