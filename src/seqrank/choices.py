@@ -9,6 +9,8 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import TypeVar
 
+from seqrank.errors import SettingError, setting
+
 
 class Backbone(StrEnum):
     PEBBLE = "pebble"
@@ -79,23 +81,31 @@ Choice = TypeVar("Choice", bound=StrEnum)
 
 
 def parse_choice(kind: type[Choice], value: object, what: str) -> Choice:
-    """`value` as a member of `kind`; a ValueError names the bad value and what is accepted."""
+    """`value` as a member of `kind`; a SettingError names the bad value and what is
+    accepted (`what`: the setting's name)."""
     try:
         return kind(str(value)) if isinstance(value, str) else kind(value)  # type: ignore[arg-type]
     except ValueError:
         accepted = ", ".join(member.value for member in kind)
-        raise ValueError(f"unknown {what} {value!r}; accepted: {accepted}") from None
+        raise SettingError(f"unknown {setting(what)} {value!r}; accepted: {accepted}") from None
 
 
 def check_path(path: str, precision: str, discrete: bool) -> None:
-    """A ValueError for a path and precision that do not go together (whatever the device)."""
+    """A SettingError for a path and precision that do not go together (whatever the
+    device)."""
     if discrete and path == TrainingPath.FAST:
-        raise ValueError(
-            "path 'fast' is SAC's fast update; block:place learns with DQN: use --path "
-            "reference or auto"
+        raise SettingError(
+            f"{setting('path')} 'fast' is SAC's fast update; block:place learns with DQN: use "
+            f"{setting('path')} reference or auto"
         )
     if path == TrainingPath.REFERENCE and precision not in (Precision.AUTO, Precision.FP32):
-        raise ValueError(
-            f"precision '{precision}' needs the fast path: the reference path is strict fp32 "
-            "(use --path fast, or --precision fp32)"
-        )
+        raise fast_path_needed(precision)
+
+
+def fast_path_needed(precision: str) -> SettingError:
+    """The error for a precision other than fp32 on the reference path (chosen, or what
+    `--path auto` resolved to)."""
+    return SettingError(
+        f"{setting('precision')} '{precision}' needs the fast path: the reference path is "
+        f"strict fp32 (use {setting('path')} fast, or {setting('precision')} fp32)"
+    )

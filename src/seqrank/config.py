@@ -26,6 +26,7 @@ from seqrank.choices import (
     parse_choice,
 )
 from seqrank.envs import canonical_task
+from seqrank.errors import SettingError, setting
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
@@ -222,24 +223,26 @@ AT_MOST_ONE = (
 
 
 def check_setting(name: str, value: Any) -> None:
-    """ValueError unless the numeric setting `name` holds a value in its range."""
+    """SettingError unless the numeric setting `name` holds a value in its range."""
     kind = str(next(f.type for f in fields(TrainConfig) if f.name == name))
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"{name} must be a whole number, got {value!r}")
+            raise SettingError(f"{setting(name)} must be a whole number, got {value!r}")
         low = 0 if name in FROM_ZERO else 1
         high = MAX.get(name, MAX_COUNT)
         if not low <= value <= high:
-            raise ValueError(f"{name} must be a whole number from {low} to {high}, got {value}")
+            raise SettingError(
+                f"{setting(name)} must be a whole number from {low} to {high}, got {value}"
+            )
         return
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"{name} must be a number, got {value!r}")
+        raise SettingError(f"{setting(name)} must be a number, got {value!r}")
     unit, zero = name in AT_MOST_ONE, name in FROM_ZERO
     too_low = value < 0 or (value == 0 and not zero)
     if not math.isfinite(value) or too_low or (unit and value > 1):
         opening = "[0" if zero else "(0"
         accepted = f"a number in {opening}, 1]" if unit else "a finite number > 0"
-        raise ValueError(f"{name} must be {accepted}, got {value}")
+        raise SettingError(f"{setting(name)} must be {accepted}, got {value}")
 
 
 def config_differences(saved: TrainConfig, wanted: TrainConfig) -> list[str]:
@@ -252,39 +255,42 @@ def config_differences(saved: TrainConfig, wanted: TrainConfig) -> list[str]:
 
 
 def validate(config: TrainConfig) -> None:
-    """Raise ValueError naming the bad value and what is accepted."""
+    """Raise SettingError naming the bad value and what is accepted."""
     for f in fields(config):
         if f.type in ("int", "float"):
             check_setting(f.name, getattr(config, f.name))
     suite = canonical_task(config.task)[0]
     if suite == "block" and config.backbone != "pebble":
-        raise ValueError(
-            f"backbone '{config.backbone}' needs SAC's actor; block:place learns with DQN "
-            "and supports backbone pebble"
+        raise SettingError(
+            f"{setting('backbone')} '{config.backbone}' needs SAC's actor; block:place learns "
+            f"with DQN and supports {setting('backbone')} pebble"
         )
     check_path(config.path, config.precision, discrete=suite == "block")
     if not config.reward.asks:
         rules.check_baseline(config)
     elif config.teacher_spec.kind == "human" and not config.record_states:
-        raise ValueError(
-            "teacher 'human' answers on the labelling page: use `seqrank label online` "
-            "(it also sets record_states 1, which the clips need)"
+        raise SettingError(
+            f"{setting('teacher')} 'human' answers on the labelling page: use `seqrank label "
+            f"online` (it also sets {setting('record_states')} 1, which the clips need)"
         )
     pretrains = config.reward is not RewardSignal.TRUE and config.unsup_steps > 0
     if pretrains and config.knn_k >= config.seed_steps:
-        raise ValueError(
-            f"knn_k {config.knn_k} must be smaller than seed_steps {config.seed_steps}: "
-            "pre-training measures each state's distance to its k-th nearest stored state"
+        raise SettingError(
+            f"{setting('knn_k')} {config.knn_k} must be smaller than {setting('seed_steps')} "
+            f"{config.seed_steps}: pre-training measures each state's distance to its k-th "
+            "nearest stored state"
         )
     if config.recheck_twice_gain < config.recheck_gain:
-        raise ValueError(
-            f"recheck_twice_gain {config.recheck_twice_gain} is below recheck_gain "
-            f"{config.recheck_gain}: an answer is asked twice more only from a larger gain"
+        raise SettingError(
+            f"{setting('recheck_twice_gain')} {config.recheck_twice_gain} is below "
+            f"{setting('recheck_gain')} {config.recheck_gain}: an answer is asked twice more "
+            "only from a larger gain"
         )
     if config.reward_batch > config.max_feedback:
-        raise ValueError(
-            f"reward_batch {config.reward_batch} exceeds max_feedback {config.max_feedback}: "
-            "a session cannot ask more questions than the whole budget"
+        raise SettingError(
+            f"{setting('reward_batch')} {config.reward_batch} exceeds "
+            f"{setting('max_feedback')} {config.max_feedback}: a session cannot ask more "
+            "questions than the whole budget"
         )
     if config.reward.asks:
         rules.check_budget(config)

@@ -1,5 +1,5 @@
 """The rules a run's settings must keep together, beyond each setting's own range: each
-raises ValueError naming the bad value and what is accepted (called by `validate`)."""
+raises SettingError naming the bad value and what is accepted (called by `validate`)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from seqrank.choices import Backbone
 from seqrank.envs import canonical_task
+from seqrank.errors import SettingError, setting
 
 if TYPE_CHECKING:
     from seqrank.config import TrainConfig
@@ -19,46 +20,48 @@ def check_qpa(config: TrainConfig) -> None:
     hold while feedback is asked for: it needs new segments, and questions."""
     n = config.query_episodes
     if n > config.episodes_kept:
-        raise ValueError(
-            f"query_episodes {n} exceeds episodes_kept {config.episodes_kept}: segments are "
-            f"cut from the last query_episodes of the kept episodes; accepted: 0 (all) to "
-            f"{config.episodes_kept}"
+        raise SettingError(
+            f"{setting('query_episodes')} {n} exceeds {setting('episodes_kept')} "
+            f"{config.episodes_kept}: segments are cut from the last {setting('query_episodes')} "
+            f"of the kept episodes; accepted: 0 (all) to {config.episodes_kept}"
         )
     if not config.reward.asks and (n or config.hybrid_replay):
-        raise ValueError(
-            f"query_episodes and hybrid_replay act while feedback is asked for; reward "
-            f"'{config.reward}' asks none: leave them out"
+        raise SettingError(
+            f"{setting('query_episodes')} and {setting('hybrid_replay')} act while feedback "
+            f"is asked for; {setting('reward')} '{config.reward}' asks none: leave them out"
         )
     if n and config.teacher_spec.kind == "replay":
-        raise ValueError(
-            f"teacher '{config.teacher}' replays recorded segments; query_episodes chooses "
-            "where new segments are cut: leave it out (hybrid_replay works with replay)"
+        raise SettingError(
+            f"{setting('teacher')} '{config.teacher}' replays recorded segments; "
+            f"{setting('query_episodes')} chooses where new segments are cut: leave it out "
+            f"({setting('hybrid_replay')} works with replay)"
         )
     if n and config.parts:
-        raise ValueError(
-            f"parts {config.parts!r} replaces a session's episodes with fresh ones of the "
-            "current policy (aligned already, one per skill level); query_episodes would "
-            "drop some: leave it out"
+        raise SettingError(
+            f"{setting('parts')} {config.parts!r} replaces a session's episodes with fresh "
+            "ones of the current policy (aligned already, one per skill level); "
+            f"{setting('query_episodes')} would drop some: leave it out"
         )
 
 
 def check_learner(config: TrainConfig) -> None:
     """The reward learners' settings that depend on each other."""
     if config.surf_crop >= config.segment_length:
-        raise ValueError(
-            f"surf_crop {config.surf_crop} must be smaller than segment_length "
-            f"{config.segment_length}: a crop keeps at least one step; accepted: 0 to "
-            f"{config.segment_length - 1}"
+        raise SettingError(
+            f"{setting('surf_crop')} {config.surf_crop} must be smaller than "
+            f"{setting('segment_length')} {config.segment_length}: a crop keeps at least one "
+            f"step; accepted: 0 to {config.segment_length - 1}"
         )
     if config.rime_beta_min > config.rime_beta_max:
-        raise ValueError(
-            f"rime_beta_min {config.rime_beta_min} exceeds rime_beta_max "
-            f"{config.rime_beta_max}: the uncertainty weight decays from max to min"
+        raise SettingError(
+            f"{setting('rime_beta_min')} {config.rime_beta_min} exceeds "
+            f"{setting('rime_beta_max')} {config.rime_beta_max}: the uncertainty weight "
+            "decays from max to min"
         )
     if config.rime_tau_upper >= 0.5:
-        raise ValueError(
-            f"rime_tau_upper must be below 0.5, got {config.rime_tau_upper}: RIME flips a "
-            "label the model gives less than this probability"
+        raise SettingError(
+            f"{setting('rime_tau_upper')} must be below 0.5, got {config.rime_tau_upper}: "
+            "RIME flips a label the model gives less than this probability"
         )
 
 
@@ -70,27 +73,30 @@ FINETUNE_PARTS = ("low", "varied")
 def check_fine_tuning(config: TrainConfig) -> None:
     parts = [p for p in config.parts.split(",") if p]
     if any(p not in FINETUNE_PARTS for p in parts):
-        raise ValueError(
-            f"parts {config.parts!r}: give a comma-separated list of {', '.join(FINETUNE_PARTS)}"
+        raise SettingError(
+            f"{setting('parts')} {config.parts!r}: give a comma-separated list of "
+            f"{', '.join(FINETUNE_PARTS)}"
         )
     if not config.start_from:
         return
     source = Path(config.start_from)
     if not (source / "checkpoint.pt").is_file() or not (source / "config.json").is_file():
-        raise ValueError(
-            f"start_from {config.start_from!r}: not a run directory with a checkpoint "
-            "(config.json and checkpoint.pt)"
+        raise SettingError(
+            f"{setting('start_from')} {config.start_from!r}: not a run directory with a "
+            "checkpoint (config.json and checkpoint.pt)"
         )
     saved = json.loads((source / "config.json").read_text())
     if canonical_task(saved["task"]) != canonical_task(config.task):
-        raise ValueError(
-            f"start_from {config.start_from!r} trained {saved['task']!r}, not {config.task!r}"
+        raise SettingError(
+            f"{setting('start_from')} {config.start_from!r} trained {saved['task']!r}, not "
+            f"{config.task!r}"
         )
     for name in ("hidden", "layers", "reward_hidden", "reward_layers", "reward_ensemble"):
         if saved.get(name) != getattr(config, name):
-            raise ValueError(
-                f"start_from {config.start_from!r} has {name} {saved.get(name)!r}, this run "
-                f"{getattr(config, name)!r}: a run starts from one of the same task and sizes"
+            raise SettingError(
+                f"{setting('start_from')} {config.start_from!r} has {setting(name)} "
+                f"{saved.get(name)!r}, this run {getattr(config, name)!r}: a run starts from "
+                "one of the same task and sizes"
             )
 
 
@@ -98,23 +104,25 @@ def check_budget(config: TrainConfig) -> None:
     """Every session of the feedback budget falls within the run's steps."""
     last_session = config.first_session_step + (config.sessions - 1) * config.feedback_frequency
     if last_session >= config.steps:
-        raise ValueError(
+        raise SettingError(
             f"impossible budget: {config.sessions} sessions of {config.reward_batch} questions "
             f"every {config.feedback_frequency} steps from step {config.first_session_step} "
-            f"end at step {last_session}, but the run has only {config.steps} steps; "
-            "raise --steps or --reward-batch, or lower --max-feedback or --feedback-frequency"
+            f"end at step {last_session}, but the run has only {config.steps} steps; raise "
+            f"{setting('steps')} or {setting('reward_batch')}, or lower "
+            f"{setting('max_feedback')} or {setting('feedback_frequency')}"
         )
 
 
 def check_baseline(config: TrainConfig) -> None:
     """A baseline run (`reward` true or none) asks no questions."""
     if config.backbone != Backbone.PEBBLE:
-        raise ValueError(
-            f"backbone '{config.backbone}' learns its reward from feedback; reward "
-            f"'{config.reward}' asks for none: use backbone pebble"
+        raise SettingError(
+            f"{setting('backbone')} '{config.backbone}' learns its reward from feedback; "
+            f"{setting('reward')} '{config.reward}' asks for none: use {setting('backbone')} "
+            "pebble"
         )
     if config.teacher_spec.kind != "scripted":
-        raise ValueError(
-            f"teacher '{config.teacher}' answers questions; reward '{config.reward}' asks "
-            "none: leave --teacher out"
+        raise SettingError(
+            f"{setting('teacher')} '{config.teacher}' answers questions; {setting('reward')} "
+            f"'{config.reward}' asks none: leave {setting('teacher')} out"
         )

@@ -1,5 +1,33 @@
 """Errors the CLI turns into one line on stderr and exit code 2."""
 
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+
+# marks a setting's name inside a SettingError's message (never shown: str() spells it)
+_MARK = "\x00"
+_MARKED = re.compile(f"{_MARK}(\\w+){_MARK}")
+
 
 class UsageError(Exception):
     """Bad input from the user: the message names the value and what is accepted."""
+
+
+def setting(name: str) -> str:
+    """`name` as a setting inside a SettingError's message, for each front end to spell."""
+    return f"{_MARK}{name}{_MARK}"
+
+
+class SettingError(ValueError):
+    """A setting out of its range, or settings that do not go together.
+
+    Each setting the message names is marked with `setting(name)`, because the user wrote
+    it differently depending on where: `str()` spells it as the setting's own name (sweep
+    files, the Python API), `spelled` as the command line's flag (`--knn-k`)."""
+
+    def spelled(self, spell: Callable[[str], str]) -> str:
+        return _MARKED.sub(lambda found: spell(found.group(1)), str(self.args[0]))
+
+    def __str__(self) -> str:
+        return self.spelled(lambda name: name)

@@ -67,7 +67,7 @@ CASES = [
     ([*TRAIN, "--hidden", "-3"], "--hidden must be a whole number from 1 to 2147483647, got -3"),
     ([*TRAIN, "--record-states", "2"], "--record-states must be a whole number from 0 to 1, got 2"),
     ([*TRAIN, "--hidden", "big"], "argument --hidden: invalid int value: 'big'"),
-    ([*TRAIN, "--knn-k", "2000"], "--knn-k 2000 must be smaller than seed_steps 1000"),
+    ([*TRAIN, "--knn-k", "2000"], "--knn-k 2000 must be smaller than --seed-steps 1000"),
     ([*TRAIN, "--oversample", "1000"], "--oversample must be a whole number from 1 to 100, got"),
     ([*TRAIN, "--heldout-pairs", "10000000"], "--heldout-pairs must be a whole number from 1 to"),
     (  # 1.2 TiB of replay buffer: more than any machine's memory
@@ -83,16 +83,16 @@ CASES = [
     ([*TRAIN, "--query-episodes", "-1"], "--query-episodes must be a whole number from 0 to"),
     (
         [*TRAIN, "--episodes-kept", "20", "--query-episodes", "30"],
-        "--query-episodes 30 exceeds episodes_kept 20: segments are cut from the last",
+        "--query-episodes 30 exceeds --episodes-kept 20: segments are cut from the",
     ),
-    ([*TRAIN, "--reward", "true", "--hybrid-replay", "0.5"], "reward 'true' asks none: leave"),
-    ([*TRAIN, "--parts", "low", "--query-episodes", "4"], "query_episodes would drop some"),
+    ([*TRAIN, "--reward", "true", "--hybrid-replay", "0.5"], "--reward 'true' asks none: leave"),
+    ([*TRAIN, "--parts", "low", "--query-episodes", "4"], "--query-episodes would drop some"),
     # the reward learners (SURF, RIME) and the warm start
     ([*TRAIN, "--reward-learner", "best"], "unknown --reward-learner 'best'; accepted: plain"),
     ([*TRAIN, "--surf-threshold", "1.5"], "--surf-threshold must be a number in (0, 1], got 1.5"),
     ([*TRAIN, "--surf-unlabelled-ratio", "0"], "--surf-unlabelled-ratio must be a whole number"),
-    ([*TRAIN, "--surf-crop", "50"], "--surf-crop 50 must be smaller than segment_length 50"),
-    ([*TRAIN, "--rime-beta-min", "5"], "--rime-beta-min 5.0 exceeds rime_beta_max 3.0"),
+    ([*TRAIN, "--surf-crop", "50"], "--surf-crop 50 must be smaller than --segment-length 50"),
+    ([*TRAIN, "--rime-beta-min", "5"], "--rime-beta-min 5.0 exceeds --rime-beta-max 3.0"),
     ([*TRAIN, "--rime-tau-upper", "0.6"], "--rime-tau-upper must be below 0.5, got 0.6"),
     ([*TRAIN, "--rime-decay-updates", "0"], "--rime-decay-updates must be a whole number from 1"),
     ([*TRAIN, "--warm-start", "2"], "--warm-start must be a whole number from 0 to 1, got 2"),
@@ -118,11 +118,11 @@ CASES = [
     ([*TRAIN, "--path-unchecked", "-1"], "--path-unchecked must be a whole number from 0"),
     (
         [*TRAIN, "--augment", "checked", "--recheck-gain", "9", "--recheck-twice-gain", "3"],
-        "--recheck-twice-gain 3 is below recheck_gain 9",
+        "--recheck-twice-gain 3 is below --recheck-gain 9",
     ),
     ([*TRAIN, "--scale", "huge"], "argument --scale: invalid choice: 'huge'"),
     (["train", "--device", "tpu"], "unknown --device 'tpu'; accepted: auto, cpu, cuda"),
-    ([*TRAIN, "--reward-batch", "500", "--max-feedback", "100"], "exceeds max_feedback 100"),
+    ([*TRAIN, "--reward-batch", "500", "--max-feedback", "100"], "exceeds --max-feedback 100"),
     (["train", "--resume", "/nonexistent/run"], "no run directory at /nonexistent/run"),
     ([*TRAIN, "--wandb", " "], "--wandb needs a project name"),
     ([*TRAIN, "--out", "{file}"], "run directory {file} is a file, not a folder"),
@@ -140,9 +140,9 @@ CASES = [
     ([*OFFLINE, "--segment-length", "5000"], "--segment-length 5000 is longer than an episode"),
     ([*OFFLINE, "--out", "{file}"], "labelling directory {file} is a file, not a folder"),
     (["label", "offline", "--from", "{run}"], "{run} has no checkpoint yet"),
-    (["label", "offline", "--task", "nope"], "unknown task 'nope'"),
+    (["label", "offline", "--task", "nope"], "unknown --task 'nope'"),
     ([*ONLINE, "--discount", "2"], "discount must be a number in (0, 1], got 2.0"),
-    ([*ONLINE, "--query-episodes", "500"], "query_episodes 500 exceeds episodes_kept 100"),
+    ([*ONLINE, "--query-episodes", "500"], "--query-episodes 500 exceeds --episodes-kept 100"),
     ([*ONLINE, "--teacher", "oracle"], "the labelling page's teacher is the person"),
     ([*ONLINE, "--port", "-1"], "argument --port: -1 is out of range; accepted: 0 to 65535"),
     ([*STUDY, "--seed", "-5"], "seed must be a whole number from 0 to 4294967295, got -5"),
@@ -230,3 +230,24 @@ def test_bad_input_is_one_line_exit_2_and_nothing_made(
     assert err.startswith("seqrank") and "Traceback" not in err
     assert list(work.iterdir()) == []  # nothing in the working folder (default outputs)
     assert snapshot(Path(given["dir"])) == before  # nothing in the given folders
+
+
+def test_each_front_end_names_the_settings_as_its_user_wrote_them(tmp_path, capsys):
+    """One rule broken three ways: the command line names both settings as flags, a sweep
+    file and the Python API as the setting names they take."""
+    import seqrank
+
+    code = main([*TRAIN, "--dry-run", "--knn-k", "2000", "--seed-steps", "1000"])
+    assert code == 2
+    assert "error: --knn-k 2000 must be smaller than --seed-steps 1000:" in capsys.readouterr().err
+
+    spec = tmp_path / "sweep.toml"
+    extra = "[overrides]\nknn_k = 2000\nseed_steps = 1000"
+    spec.write_text(TOML.format(out=tmp_path / "sweep-out", extra=extra))
+    assert main(["sweep", str(spec), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert "knn_k 2000 must be smaller than seed_steps 1000:" in err and "--" not in err
+
+    with pytest.raises(ValueError) as raised:
+        seqrank.make_config("dmc:cartpole_swingup", knn_k=2000, seed_steps=1000)
+    assert str(raised.value).startswith("knn_k 2000 must be smaller than seed_steps 1000:")

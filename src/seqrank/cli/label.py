@@ -18,7 +18,13 @@ from seqrank.cli.label_page import (
     server_options,
 )
 from seqrank.cli.label_study import add_study, run_study
-from seqrank.cli.options import Parser, add_run_options, positive, seed_number
+from seqrank.cli.options import (
+    Parser,
+    add_run_options,
+    positive,
+    problem_with_flags,
+    seed_number,
+)
 from seqrank.cli.train import prepare_run, say_finished
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
@@ -99,7 +105,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             return _online(args, say, err)
         return run_study(args, say)
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
-        raise UsageError(str(problem)) from None
+        raise UsageError(problem_with_flags(problem)) from None
 
 
 def _offline_options(args: argparse.Namespace) -> Any:

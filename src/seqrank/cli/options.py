@@ -10,6 +10,7 @@ from typing import Any, NoReturn
 
 from seqrank.cli.option_help import MEANINGS
 from seqrank.config import SCALES, TrainConfig
+from seqrank.errors import SettingError
 
 # TrainConfig field annotations (strings under `from __future__ import annotations`) -> types.
 FIELD_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
@@ -119,6 +120,18 @@ def field_type(field: Field[Any]) -> type:
     """A TrainConfig field's type on the command line: int, float, or else str (a named
     choice such as the scheme is given as its name, and the config checks it)."""
     return FIELD_TYPES.get(str(field.type), str)
+
+
+def as_flag(name: str) -> str:
+    """A setting's name as its option (every TrainConfig field is one): knn_k -> --knn-k."""
+    known = any(f.name == name for f in fields(TrainConfig))
+    return f"--{name.replace('_', '-')}" if known else name
+
+
+def problem_with_flags(problem: Exception) -> str:
+    """An error's message with the settings it names spelled as the options a command-line
+    user types (other errors as they are)."""
+    return problem.spelled(as_flag) if isinstance(problem, SettingError) else str(problem)
 
 
 def given_settings(args: argparse.Namespace) -> dict[str, Any]:

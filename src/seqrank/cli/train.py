@@ -14,7 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from seqrank.choices import RewardSignal
-from seqrank.cli.options import add_run_options, given_settings
+from seqrank.cli.options import add_run_options, given_settings, problem_with_flags
 from seqrank.config import TrainConfig, resolve_config
 from seqrank.errors import UsageError
 from seqrank.scale import resolve_scale
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         try:
             started = prepare_run(args, err, Trainer, resolve_device)
         except (ValueError, FileNotFoundError, FileExistsError) as problem:
-            raise UsageError(_as_flag(str(problem), given_settings(args))) from None
+            raise UsageError(problem_with_flags(problem)) from None
         except KeyboardInterrupt:
             return stop.exit_code()
         if started is None:
@@ -165,17 +165,6 @@ def _check_with_env(config: TrainConfig) -> None:
         env.close()
 
 
-def _as_flag(message: str, given: dict[str, Any]) -> str:
-    """A settings error names the setting ("steps must be ..."); on the command line the
-    user typed a flag, so name that ("--steps must be ...")."""
-    for name in given:
-        flag = f"--{name.replace('_', '-')}"
-        for lead in ("", "unknown "):
-            if message.startswith(f"{lead}{name} "):
-                return f"{lead}{flag}{message[len(lead) + len(name) :]}"
-    return message
-
-
 def _refuse_new_settings(args: argparse.Namespace) -> None:
     given = given_settings(args)
     if given or hasattr(args, "out") or hasattr(args, "scale") or hasattr(args, "wandb"):
@@ -272,16 +261,18 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
         ("steps", f"{summary['steps']}"),
         ("final eval return", "-" if final is None else f"{final:.1f}"),
         ("best eval return", "-" if best is None else f"{best:.1f}"),
-        ("final success rate", f"{summary['final_eval_success_rate']:.0f}%"),
+    ]
+    if reward.asks and final is not None:
+        rows += _reference_rows(summary, run)
+    if canonical_task(summary["task"])[0] != "dmc":  # DMControl has no success signal
+        rows.append(("final success rate", f"{summary['final_eval_success_rate']:.0f}%"))
+    rows += [
         ("feedback sessions", f"{summary['sessions']}"),
         ("questions asked", f"{summary['asked']}"),
         ("pairs inferred (wrong)", f"{summary['inferred']} ({summary['inferred_wrong']})"),
         ("wall time", f"{summary['wall_seconds'] / 60:.1f} min"),
         ("steps per second", f"{summary['steps_per_second']:.0f}"),
     ]
-    if canonical_task(summary["task"])[0] == "dmc":
-        rows.pop(3)  # DMControl has no success signal: its rate is always 0
-    rows[3:3] = _reference_rows(summary, run) if reward.asks and final is not None else []
     for name, value in rows:
         table.add_row(name, value)
     out.print(table)

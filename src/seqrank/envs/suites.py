@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from seqrank.envs.base import SimEnv
+from seqrank.errors import SettingError, setting
 
 DMC_PAPER_TASKS = ("walker_walk", "cheetah_run", "quadruped_walk", "humanoid_walk", "hopper_hop")
 METAWORLD_PAPER_TASKS = (
@@ -67,8 +68,8 @@ def canonical_task(name: str) -> tuple[str, str]:
     mw_task = task if task.endswith("-v3") else f"{task}-v3"
     if suite_name in ("", "metaworld") and mw_task in _metaworld_tasks():
         return "metaworld", mw_task
-    raise ValueError(
-        f"unknown task {name!r}; accepted: {', '.join(PAPER_TASKS)}, any DMControl "
+    raise SettingError(
+        f"unknown {setting('task')} {name!r}; accepted: {', '.join(PAPER_TASKS)}, any DMControl "
         "domain_task (e.g. dmc:cartpole_swingup) or Meta-World v3 MT1 task "
         "(e.g. metaworld:reach-v3), block:place (the tabletop block-placing task), "
         "gym:ID (a registered Gymnasium environment, e.g. gym:Hopper-v5) or "

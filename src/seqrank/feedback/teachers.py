@@ -28,6 +28,7 @@ from typing import Literal
 
 import numpy as np
 
+from seqrank.errors import SettingError, setting
 from seqrank.types import Answer
 
 TieRule = Literal["equal", "first", "random"]
@@ -47,16 +48,19 @@ class TeacherConfig:
 
     def __post_init__(self) -> None:
         if math.isnan(self.beta):
-            raise ValueError("teacher beta must be a number (<= 0 or inf means deterministic)")
+            raise SettingError(
+                f"{setting('teacher')} beta must be a number (<= 0 or inf means deterministic)"
+            )
         if not 0.0 < self.gamma <= 1.0:
-            raise ValueError(f"teacher gamma must be in (0, 1], got {self.gamma}")
+            raise SettingError(f"{setting('teacher')} gamma must be in (0, 1], got {self.gamma}")
         for name in ("eps_mistake", "eps_skip", "eps_equal"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
-                raise ValueError(f"teacher {name} must be in [0, 1], got {value}")
+                raise SettingError(f"{setting('teacher')} {name} must be in [0, 1], got {value}")
         if self.tie_rule not in TIE_RULES:
-            raise ValueError(
-                f"teacher tie_rule {self.tie_rule!r} is not one of {', '.join(TIE_RULES)}"
+            raise SettingError(
+                f"{setting('teacher')} tie_rule {self.tie_rule!r} is not one of "
+                f"{', '.join(TIE_RULES)}"
             )
 
     @property
@@ -164,7 +168,9 @@ def parse_teacher(value: str) -> TeacherSpec:
     if value.startswith("replay:"):
         path = value.removeprefix("replay:")
         if not path:
-            raise ValueError("teacher 'replay:' needs a file: replay:PATH/TO/labels.jsonl")
+            raise SettingError(
+                f"{setting('teacher')} 'replay:' needs a file: replay:PATH/TO/labels.jsonl"
+            )
         return TeacherSpec("replay", replay_file=path, short_name="replay")
     others = (
         ", knob=value,..., human (the labelling page) or replay:FILE (labels exported as JSONL)"
@@ -180,9 +186,9 @@ def parse_scripted_teacher(value: str, others: str = " or knob=value,...") -> Te
     if parts and "=" not in parts[0]:
         name = parts.pop(0)
         if name not in TEACHER_PRESETS:
-            raise ValueError(
-                f"unknown teacher {name!r}; accepted: {', '.join(TEACHER_PRESETS)} (optionally "
-                f"followed by ,knob=value){others}"
+            raise SettingError(
+                f"unknown {setting('teacher')} {name!r}; accepted: {', '.join(TEACHER_PRESETS)} "
+                f"(optionally followed by ,knob=value){others}"
             )
         base = TEACHER_PRESETS[name]
     knobs = dict(_knob(part, value) for part in parts)
@@ -194,12 +200,14 @@ def _knob(part: str, value: str) -> tuple[str, float | str]:
     key, _, text = part.partition("=")
     key = key.strip()
     if key not in KNOBS or not text:
-        raise ValueError(
-            f"teacher {value!r}: {part!r} is not knob=value; knobs: {', '.join(KNOBS)}"
+        raise SettingError(
+            f"{setting('teacher')} {value!r}: {part!r} is not knob=value; knobs: {', '.join(KNOBS)}"
         )
     if key == "tie_rule":
         return key, text.strip()
     try:
         return key, float(text)
     except ValueError:
-        raise ValueError(f"teacher {value!r}: {key} must be a number, got {text!r}") from None
+        raise SettingError(
+            f"{setting('teacher')} {value!r}: {key} must be a number, got {text!r}"
+        ) from None

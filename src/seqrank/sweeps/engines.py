@@ -38,16 +38,12 @@ def _start_worker() -> None:
     """A local worker's signals: SIGINT is the sweep command's to handle (a terminal's
     Ctrl-C reaches the whole process group); the first SIGTERM asks the run to stop, a
     second one interrupts it."""
+    from seqrank.training.stopping import stop_then_interrupt
+
     global _worker_stop
     stop = _worker_stop = threading.Event()
-
-    def on_term(signum: int, frame: object) -> None:
-        if stop.is_set():
-            raise KeyboardInterrupt
-        stop.set()
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGTERM, stop_then_interrupt(lambda signum: stop.set()))
 
 
 def train_run(

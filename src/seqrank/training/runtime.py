@@ -12,9 +12,17 @@ from dataclasses import dataclass
 
 import torch
 
-from seqrank.choices import Device, Precision, TrainingPath, check_path, parse_choice
+from seqrank.choices import (
+    Device,
+    Precision,
+    TrainingPath,
+    check_path,
+    fast_path_needed,
+    parse_choice,
+)
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task
+from seqrank.errors import SettingError, setting
 
 DEVICES = tuple(Device)
 PATHS = tuple(TrainingPath)
@@ -37,7 +45,9 @@ def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device 'cuda' requested but no CUDA device is available; use cpu or auto")
+        raise SettingError(
+            f"{setting('device')} 'cuda' requested but no CUDA device is available; use cpu or auto"
+        )
     return torch.device(name)
 
 
@@ -52,10 +62,7 @@ def resolve_runtime(
     check_path(path, precision, discrete)
     fast = (where.type == "cuda" and not discrete) if path == "auto" else path == "fast"
     if not fast and precision not in ("auto", "fp32"):
-        raise ValueError(
-            f"precision '{precision}' needs the fast path: the reference path is strict fp32 "
-            "(use --path fast, or --precision fp32)"
-        )
+        raise fast_path_needed(precision)
     if precision == "auto":
         precision = "tf32" if fast and where.type == "cuda" else "fp32"
     return Runtime(where, fast, precision)

@@ -45,6 +45,21 @@ def _handling(handle: Handler) -> Iterator[None]:
             signal.signal(number, handler)
 
 
+def stop_then_interrupt(on_first: Callable[[int], None]) -> Handler:
+    """A signal handler: the first signal calls `on_first(signum)`, later ones raise
+    KeyboardInterrupt (the rule of every command, and of a sweep's worker processes)."""
+    received = False
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        nonlocal received
+        if received:
+            raise KeyboardInterrupt
+        received = True
+        on_first(signum)
+
+    return handle
+
+
 @contextlib.contextmanager
 def stop_on_signals(
     on_stop: Callable[[], None], say: Callable[[str], None]
@@ -55,15 +70,13 @@ def stop_on_signals(
         yield stop  # signals reach the main thread only
         return
 
-    def handle(signum: int, frame: FrameType | None) -> None:
-        if stop.received:
-            raise KeyboardInterrupt
+    def first(signum: int) -> None:
         stop.signum = signum
         name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
         say(f"{name}: stopping cleanly (saving first; Ctrl-C again stops at once)")
         on_stop()
 
-    with _handling(handle):
+    with _handling(stop_then_interrupt(first)):
         yield stop
 
 

@@ -18,6 +18,7 @@ from seqrank.choices import RewardSignal
 from seqrank.config import TrainConfig
 from seqrank.envs import SimEnv, make_env
 from seqrank.episodes import EpisodeStore
+from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan
 from seqrank.feedback.sources import make_source
@@ -241,16 +242,16 @@ def _check_episode_fits(config: TrainConfig, episode_length: int, has_terminals:
     if not config.reward.asks:
         return
     if config.segment_length > episode_length:
-        raise ValueError(
-            f"segment_length {config.segment_length} is longer than an episode of "
-            f"{config.task} ({episode_length} steps), so no segment can be cut; accepted: "
+        raise SettingError(
+            f"{setting('segment_length')} {config.segment_length} is longer than an episode "
+            f"of {config.task} ({episode_length} steps), so no segment can be cut; accepted: "
             f"1 to {episode_length}"
         )
     if config.first_session_step < episode_length and not has_terminals:
-        raise ValueError(
+        raise SettingError(
             f"the first feedback session (step {config.first_session_step}) comes before "
             f"the first complete episode ({episode_length} steps); raise "
-            "--seed-steps or --unsup-steps"
+            f"{setting('seed_steps')} or {setting('unsup_steps')}"
         )
 
 
@@ -262,9 +263,10 @@ def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.de
     else:
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     if needed > total:
-        raise ValueError(
-            f"steps {steps}: the replay buffer keeps every step, {needed / 2**30:,.1f} GiB, "
-            f"more than the {total / 2**30:,.1f} GiB of memory on {storage.type}; lower --steps"
+        raise SettingError(
+            f"{setting('steps')} {steps}: the replay buffer keeps every step, "
+            f"{needed / 2**30:,.1f} GiB, more than the {total / 2**30:,.1f} GiB of memory on "
+            f"{storage.type}; lower {setting('steps')}"
         )
 
 
