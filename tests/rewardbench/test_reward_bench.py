@@ -144,6 +144,15 @@ def test_the_grid_continues_a_killed_run_without_repeating_a_cell(pool_file, tmp
         run_grid([pool_file], ["pairwise"], ["oracle"], [0], other, out, 1)
 
 
+def test_the_grid_runs_seed_by_seed(pool_file, tmp_path):
+    """Every combination's seed 0 before any seed 1: a grid stopped part way leaves the
+    combinations with the same seeds, so its partial table compares like with like."""
+    out = tmp_path / "grid"
+    run_grid([pool_file], ["pairwise"], ["oracle", "mistake"], [0, 1], SMALL, out, 1)
+    order = [(r["seed"], r["teacher"]) for r in read_rows(out / "rows.jsonl")][::2]
+    assert order == [(0, "oracle"), (0, "mistake"), (1, "oracle"), (1, "mistake")]
+
+
 @pytest.mark.parametrize("learner", ["surf", "rime"])
 def test_a_cell_learns_with_each_learner_and_repeats_itself(learner):
     """Each learner's cell fits and scores at every budget, its measures in the row; the
@@ -329,3 +338,24 @@ def test_the_grid_has_an_augment_axis_that_re_checks_under_a_noisy_teacher(pool_
     assert (
         "| mistake | plain+checked | 30 | root |" in table and "| mistake | plain | 30 |" in table
     )
+
+
+def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path):
+    """`--until-step`: the episodes that ended by a step, as a shorter run of the same
+    settings would have kept them."""
+    from seqrank.rewardbench.pool import pool_from_run
+    from support.runs import run, tiny_config
+
+    config = tiny_config(reward="true", steps=3000, unsup_steps=0, eval_every=3000)
+    run(tmp_path / "run", config)
+    whole = pool_from_run(tmp_path / "run", 0, 0)
+    part = pool_from_run(tmp_path / "run", 1, 0, until_step=2500)
+    assert len(whole) == 3 and part.origin.tolist() == [0, 1, RANDOM_PLAY]
+    np.testing.assert_array_equal(part.obs[:2], whole.obs[:2])
+    assert part.meta["run_steps"] == 2000
+    with pytest.raises(ValueError, match="no episode of run .* ended by step 999"):
+        pool_from_run(tmp_path / "run", 0, 0, until_step=999)
+    with pytest.raises(ValueError, match="--until-step 3001 is past the run's last step"):
+        pool_from_run(tmp_path / "run", 0, 0, until_step=3001)
+    code = main(["reward-bench", "pool", "--until-step", "2000", "--out", str(tmp_path / "p")])
+    assert code == 2  # --until-step needs --from-run

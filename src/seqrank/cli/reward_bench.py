@@ -77,6 +77,12 @@ def _add_pool(actions: Any) -> None:
         "training one",
     )
     pool.add_argument(
+        "--until-step",
+        type=int_between(1, 10**8),
+        help="with --from-run: only the episodes that ended by this step (the pool of a "
+        "shorter run of the same settings; default: every kept episode)",
+    )
+    pool.add_argument(
         "--steps",
         type=int_between(1, 10**8),
         default=50_000,
@@ -182,8 +188,10 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
 
     try:
         check_file(args.out, "pool file")
+        if args.until_step is not None and args.from_run is None:
+            raise ValueError("--until-step takes part of a run given with --from-run")
         run_path = args.from_run or _train_for_pool(args, err)
-        pool = pool_from_run(run_path, args.random_episodes, args.seed)
+        pool = pool_from_run(run_path, args.random_episodes, args.seed, args.until_step)
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
     save_pool(pool, args.out)

@@ -101,10 +101,11 @@ def run_grid(
     rows = read_rows(rows_path)
     rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
     done = {row_key(r) for r in rows}
+    # seed by seed: a grid stopped part way leaves every combination with the same seeds
     todo = [
         (str(p), cell)
-        for p, teacher, seed, learner, augment, scheme in product(
-            pools, teachers, seeds, learners, augments, schemes
+        for seed, p, teacher, learner, augment, scheme in product(
+            seeds, pools, teachers, learners, augments, schemes
         )
         if (cell := Cell(scheme, teacher, seed, learner, augment)).key(tasks[str(p)]) not in done
     ]

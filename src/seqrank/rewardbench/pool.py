@@ -145,8 +145,12 @@ def pool_from_episodes(
     )
 
 
-def pool_from_run(run_path: Path, random_count: int, seed: int) -> Pool:
-    """The episodes kept in a run's last checkpoint, with `random_count` random ones."""
+def pool_from_run(
+    run_path: Path, random_count: int, seed: int, until_step: int | None = None
+) -> Pool:
+    """The episodes kept in a run's last checkpoint (with `until_step`, only those that
+    ended by that step: the pool of a shorter run of the same settings), with
+    `random_count` random ones."""
     from seqrank.training.runs import RunDir
 
     run = RunDir.open(run_path)
@@ -156,13 +160,35 @@ def pool_from_run(run_path: Path, random_count: int, seed: int) -> Pool:
     config = run.read_config()
     kept: list[Episode] = list(state["episodes"]["episodes"])
     first = int(state["counters"]["episode"]) - len(kept)
+    steps = int(state["counters"]["step"])
+    if until_step is not None:
+        kept, steps = _ended_by(kept, first, steps, until_step, run_path)
     meta = {
         "run": str(run_path),
         "run_reward": str(config.reward),
-        "run_steps": int(state["counters"]["step"]),
+        "run_steps": steps,
         "run_seed": config.seed,
         "random_episodes": random_count,
         "random_seed": seed,
     }
     extra = random_episodes(config.task, random_count, seed)
     return pool_from_episodes(config.task, kept, first, extra, meta)
+
+
+def _ended_by(
+    kept: list[Episode], first: int, steps: int, until_step: int, run_path: Path
+) -> tuple[list[Episode], int]:
+    """The kept episodes that ended by `until_step`, and that step. Episode ends are
+    counted from the run's start, so every earlier episode must still be kept."""
+    if first > 0:
+        raise ValueError(
+            f"run {run_path} dropped its first {first} episodes (episodes_kept): the step "
+            "each kept one ended at is unknown, so --until-step cannot be applied"
+        )
+    if until_step > steps:
+        raise ValueError(f"--until-step {until_step} is past the run's last step ({steps})")
+    ends = np.cumsum([len(e.reward) for e in kept])
+    count = int(np.searchsorted(ends, until_step, side="right"))
+    if count == 0:
+        raise ValueError(f"no episode of run {run_path} ended by step {until_step}")
+    return kept[:count], int(ends[count - 1])
