@@ -126,17 +126,14 @@ def test_rime_keeps_small_losses_drops_middling_ones_and_flips_the_least_likely(
     )
 
 
-def test_rime_selection_leaves_out_or_flips_back_the_wrong_labels_of_a_fitted_model():
+def _rime_selection_after_fit(seed: int) -> dict[str, float]:
     """300 learnable pairs, 60 of the labels flipped; the ensemble fitted with RIME for 60
-    epochs. Its selection after the fit: the labels it trains on are right far more often
-    than the given ones (0.8), most wrong labels are out or flipped back, most clean ones
-    kept. Measured over seeds 0-4: right 0.935-0.954, wrong left 11-16 of 60, clean kept
-    0.92-0.95 (tests/learning_thresholds.md's way: margins well below)."""
-    segments, first, second, truth = segment_pairs(300, seed=2)
+    epochs; what its selection after the fit keeps and flips."""
+    segments, first, second, truth = segment_pairs(300, seed=2 + 10 * seed)
     wrong = torch.zeros(300, dtype=torch.bool)
-    wrong[torch.randperm(300, generator=torch.Generator().manual_seed(12))[:60]] = True
+    wrong[torch.randperm(300, generator=torch.Generator().manual_seed(12 + seed))[:60]] = True
     noisy = torch.where(wrong, 1 - truth, truth)
-    torch.manual_seed(2)
+    torch.manual_seed(2 + seed)
     model = RewardModel(3, 3, 32, 2, 3e-3, CPU)
     learner = RimeLearner(RimeSettings())
     model.train(segments, first, second, noisy, 60, 64, 2.0, torch.Generator(), learner=learner)
@@ -146,10 +143,26 @@ def test_rime_selection_leaves_out_or_flips_back_the_wrong_labels_of_a_fitted_mo
     kept, flipped = learner.select(kl_to_labels(p_first, noisy))
     trained = kept | flipped
     labels = torch.where(flipped, 1 - noisy, noisy)
-    assert float((labels[trained] == truth[trained]).float().mean()) > 0.9
-    assert int((kept & wrong).sum()) < 24  # of 60
-    assert float((kept & ~wrong).sum()) / 240 > 0.85
-    assert not bool((flipped & ~wrong).any())  # no clean label is flipped
+    return {
+        "right": float((labels[trained] == truth[trained]).float().mean()),
+        "wrong_kept": int((kept & wrong).sum()),
+        "clean_kept": float((kept & ~wrong).sum()) / 240,
+        "clean_flipped": int((flipped & ~wrong).sum()),
+    }
+
+
+def test_rime_selection_leaves_out_or_flips_back_the_wrong_labels_of_a_fitted_model():
+    """After the fit, the labels RIME trains on are right far more often than the given
+    ones (0.8), most wrong labels are out or flipped back, most clean ones kept, none
+    flipped. Means over 3 seeds; their distribution over all triples of 20 seeds is in
+    tests/learning_thresholds.md (right 0.914-0.969, wrong kept 7.3-21 of 60, clean kept
+    0.882-0.940; no clean label flipped in any seed)."""
+    runs = [_rime_selection_after_fit(seed) for seed in range(3)]
+    mean = {key: float(np.mean([run[key] for run in runs])) for key in runs[0]}
+    assert mean["right"] > 0.88
+    assert mean["wrong_kept"] < 30  # of 60; taking every label keeps all 60
+    assert mean["clean_kept"] > 0.8
+    assert mean["clean_flipped"] == 0
 
 
 def test_learners_by_name():

@@ -353,7 +353,7 @@ def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path):
     assert len(whole) == 3 and part.origin.tolist() == [0, 1, RANDOM_PLAY]
     np.testing.assert_array_equal(part.obs[:2], whole.obs[:2])
     assert part.meta["run_steps"] == 2000
-    with pytest.raises(ValueError, match="no episode of run .* ended by step 999"):
+    with pytest.raises(ValueError, match=r"no episode of run .* ended by step 999"):
         pool_from_run(tmp_path / "run", 0, 0, until_step=999)
     with pytest.raises(ValueError, match="--until-step 3001 is past the run's last step"):
         pool_from_run(tmp_path / "run", 0, 0, until_step=3001)
