@@ -99,13 +99,18 @@ def check_path(path: str, precision: str, discrete: bool) -> None:
             f"{setting('path')} reference or auto"
         )
     if path == TrainingPath.REFERENCE and precision not in (Precision.AUTO, Precision.FP32):
-        raise fast_path_needed(precision)
+        raise fast_path_needed(precision, discrete)
 
 
-def fast_path_needed(precision: str) -> SettingError:
+def fast_path_needed(precision: str, discrete: bool) -> SettingError:
     """The error for a precision other than fp32 on the reference path (chosen, or what
-    `--path auto` resolved to)."""
+    `--path auto` resolved to); a discrete task (DQN) has no fast path to offer."""
+    way_out = (
+        f"{setting('precision')} fp32"
+        if discrete
+        else f"{setting('path')} fast, or {setting('precision')} fp32"
+    )
     return SettingError(
         f"{setting('precision')} '{precision}' needs the fast path: the reference path is "
-        f"strict fp32 (use {setting('path')} fast, or {setting('precision')} fp32)"
+        f"strict fp32 (use {way_out})"
     )

@@ -23,11 +23,13 @@ class SettingError(ValueError):
     """A setting out of its range, or settings that do not go together.
 
     Each setting the message names is marked with `setting(name)`, because the user wrote
-    it differently depending on where: `str()` spells it as the setting's own name (sweep
-    files, the Python API), `spelled` as the command line's flag (`--knn-k`)."""
+    it differently depending on where: the exception's text (`str`, `args`) names it as
+    the setting itself (sweep files, the Python API); `spelled` lets a command name it as
+    its option (`--knn-k`)."""
+
+    def __init__(self, marked: str):
+        super().__init__(_MARKED.sub(r"\1", marked))
+        self.marked = marked  # kept through pickling (a sweep worker's error)
 
     def spelled(self, spell: Callable[[str], str]) -> str:
-        return _MARKED.sub(lambda found: spell(found.group(1)), str(self.args[0]))
-
-    def __str__(self) -> str:
-        return self.spelled(lambda name: name)
+        return _MARKED.sub(lambda found: spell(found.group(1)), self.marked)

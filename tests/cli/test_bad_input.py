@@ -72,7 +72,7 @@ CASES = [
     ([*TRAIN, "--heldout-pairs", "10000000"], "--heldout-pairs must be a whole number from 1 to"),
     (  # 1.2 TiB of replay buffer: more than any machine's memory
         ["train", "--device", "cpu", "--task", "humanoid_walk", "--steps", "2147483647"],
-        "steps 2147483647: the replay buffer keeps every step, 1,264.0 GiB, more than the",
+        "error: --steps 2147483647: the replay buffer keeps every step, 1,264.0 GiB, more",
     ),
     ([*TRAIN, "--max-feedback", "100000"], "impossible budget"),
     # query-policy alignment (QPA)
@@ -141,11 +141,11 @@ CASES = [
     ([*OFFLINE, "--out", "{file}"], "labelling directory {file} is a file, not a folder"),
     (["label", "offline", "--from", "{run}"], "{run} has no checkpoint yet"),
     (["label", "offline", "--task", "nope"], "unknown --task 'nope'"),
-    ([*ONLINE, "--discount", "2"], "discount must be a number in (0, 1], got 2.0"),
+    ([*ONLINE, "--discount", "2"], "error: --discount must be a number in (0, 1], got 2.0"),
     ([*ONLINE, "--query-episodes", "500"], "--query-episodes 500 exceeds --episodes-kept 100"),
     ([*ONLINE, "--teacher", "oracle"], "the labelling page's teacher is the person"),
     ([*ONLINE, "--port", "-1"], "argument --port: -1 is out of range; accepted: 0 to 65535"),
-    ([*STUDY, "--seed", "-5"], "seed must be a whole number from 0 to 4294967295, got -5"),
+    ([*STUDY, "--seed", "-5"], "error: --seed must be a whole number from 0 to 4294967295"),
     ([*STUDY, "--methods", "root,foo"], "--methods 'root,foo': give distinct schemes"),
     ([*STUDY, "--task", "dmc:cheetah_run", "--max-feedback", "200"], "impossible budget"),
     # labels
@@ -162,7 +162,7 @@ CASES = [
     (["sweep", "{toml}", "--cpus-per-run", "nan"], "argument --cpus-per-run: nan is out of range"),
     (["sweep", "{toml}", "--gpus-per-run", "-1"], "argument --gpus-per-run: -1.0 is out of range"),
     (["sweep", "{toml_out_file}"], "sweep folder {file} is a file, not a folder"),
-    (["sweep", "{toml_discount}"], "discount must be a number in (0, 1], got 2"),
+    (["sweep", "{toml_discount}"], "seed 0: discount must be a number in (0, 1], got 2"),
     # report
     (["report", "{file}"], "{file} is not a folder"),
     (["report", "{runs}", "--out", "{file}"], "report folder {file} is a file, not a folder"),
@@ -251,3 +251,32 @@ def test_each_front_end_names_the_settings_as_its_user_wrote_them(tmp_path, caps
     with pytest.raises(ValueError) as raised:
         seqrank.make_config("dmc:cartpole_swingup", knn_k=2000, seed_steps=1000)
     assert str(raised.value).startswith("knn_k 2000 must be smaller than seed_steps 1000:")
+
+
+def test_a_resumed_run_names_its_saved_settings_not_flags(given, capsys):
+    """--resume refuses setting options, so an error in the saved settings names them as
+    config.json does, and says where they are."""
+    import json
+
+    config_file = Path(given["run"]) / "config.json"
+    saved = json.loads(config_file.read_text())
+    config_file.write_text(json.dumps({**saved, "path": "reference", "precision": "tf32"}))
+    assert main(["train", "--resume", given["run"]]) == 2
+    err = capsys.readouterr().err
+    assert "error: precision 'tf32' needs the fast path" in err and "--precision" not in err
+    assert f"saved in {given['run']}/config.json" in err
+
+
+def test_a_setting_error_reads_plainly_everywhere_and_survives_pickling():
+    """The marks that let a command spell settings as flags never show: not in str, args or
+    repr, nor after the trip a sweep worker's error makes between processes."""
+    import pickle
+
+    from seqrank.errors import SettingError, setting
+
+    error = SettingError(f"{setting('knn_k')} 5 must be smaller than {setting('seed_steps')} 1")
+    plain = "knn_k 5 must be smaller than seed_steps 1"
+    assert str(error) == error.args[0] == plain and "\x00" not in repr(error)
+    again = pickle.loads(pickle.dumps(error))
+    assert str(again) == plain
+    assert again.spelled(str.upper) == "KNN_K 5 must be smaller than SEED_STEPS 1"

@@ -340,7 +340,7 @@ def test_the_grid_has_an_augment_axis_that_re_checks_under_a_noisy_teacher(pool_
     )
 
 
-def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path):
+def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path, capsys):
     """`--until-step`: the episodes that ended by a step, as a shorter run of the same
     settings would have kept them."""
     from seqrank.rewardbench.pool import pool_from_run
@@ -358,4 +358,6 @@ def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path):
     with pytest.raises(ValueError, match="--until-step 3001 is past the run's last step"):
         pool_from_run(tmp_path / "run", 0, 0, until_step=3001)
     code = main(["reward-bench", "pool", "--until-step", "2000", "--out", str(tmp_path / "p")])
-    assert code == 2  # --until-step needs --from-run
+    assert code == 2
+    assert "--until-step takes part of a run given with --from-run" in capsys.readouterr().err
+    assert part.meta["until_step"] == 2500 and whole.meta["until_step"] is None

@@ -24,6 +24,7 @@ from seqrank.cli.options import (
     positive,
     problem_with_flags,
     seed_number,
+    setting_flags,
 )
 from seqrank.cli.train import prepare_run, say_finished
 from seqrank.errors import UsageError
@@ -88,6 +89,7 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
     offline.add_argument("--seed", type=seed_number, default=0)
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
+    offline.set_defaults(setting_flags=setting_flags(offline))
     server_options(offline)
 
 
@@ -105,7 +107,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             return _online(args, say, err)
         return run_study(args, say)
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
-        raise UsageError(problem_with_flags(problem)) from None
+        raise UsageError(problem_with_flags(problem, args)) from None
 
 
 def _offline_options(args: argparse.Namespace) -> Any:

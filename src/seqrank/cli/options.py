@@ -122,16 +122,23 @@ def field_type(field: Field[Any]) -> type:
     return FIELD_TYPES.get(str(field.type), str)
 
 
-def as_flag(name: str) -> str:
-    """A setting's name as its option (every TrainConfig field is one): knn_k -> --knn-k."""
-    known = any(f.name == name for f in fields(TrainConfig))
-    return f"--{name.replace('_', '-')}" if known else name
+def setting_flags(parser: argparse.ArgumentParser) -> frozenset[str]:
+    """The settings (TrainConfig fields) that `parser` has as options; a command keeps
+    them as its `setting_flags` default, for `problem_with_flags`."""
+    names = {f.name for f in fields(TrainConfig)}
+    return frozenset(action.dest for action in parser._actions if action.dest in names)
 
 
-def problem_with_flags(problem: Exception) -> str:
-    """An error's message with the settings it names spelled as the options a command-line
-    user types (other errors as they are)."""
-    return problem.spelled(as_flag) if isinstance(problem, SettingError) else str(problem)
+def problem_with_flags(problem: Exception, args: argparse.Namespace) -> str:
+    """An error's message with the settings it names spelled as the options the user can
+    have typed (`knn_k` -> `--knn-k`): the command's own setting options, none when it
+    resumes a run (its settings come from config.json). Other errors as they are."""
+    if not isinstance(problem, SettingError):
+        return str(problem)
+    if hasattr(args, "resume"):
+        return f"{problem} (the run's settings, saved in {args.resume}/config.json)"
+    typed: frozenset[str] = getattr(args, "setting_flags", frozenset())
+    return problem.spelled(lambda name: f"--{name.replace('_', '-')}" if name in typed else name)
 
 
 def given_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -185,3 +192,4 @@ def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None
             metavar=field_type(f).__name__.upper(),
             help=f"{MEANINGS.get(f.name, '')} (default: {f.default} or the preset's)",
         )
+    parser.set_defaults(setting_flags=setting_flags(parser))

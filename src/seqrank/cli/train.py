@@ -55,7 +55,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         try:
             started = prepare_run(args, err, Trainer, resolve_device)
         except (ValueError, FileNotFoundError, FileExistsError) as problem:
-            raise UsageError(problem_with_flags(problem)) from None
+            raise UsageError(problem_with_flags(problem, args)) from None
         except KeyboardInterrupt:
             return stop.exit_code()
         if started is None:

@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 
 from seqrank.envs.base import SimEnv
+from seqrank.errors import SettingError, setting
 
 FRAME_SIDE = 128  # recorded frames are downscaled to at most this many pixels a side
 
@@ -48,16 +49,16 @@ def load_factory(spec: str) -> Callable[[], gym.Env[Any, Any]]:
     try:
         module = importlib.import_module(module_name)
     except ImportError as error:
-        raise ValueError(
-            f"task {spec!r}: cannot import module {module_name!r} ({error}); a custom task "
-            "is 'module.path:factory' with the module importable (on PYTHONPATH or in the current "
-            "directory)"
+        raise SettingError(
+            f"{setting('task')} {spec!r}: cannot import module {module_name!r} ({error}); a custom "
+            "task is 'module.path:factory' with the module importable (on PYTHONPATH or in the "
+            "current directory)"
         ) from None
     factory = getattr(module, attribute, None)
     if not callable(factory):
-        raise ValueError(
-            f"task {spec!r}: module {module_name!r} has no callable {attribute!r}; a custom "
-            "task is 'module.path:factory', a function that returns a gymnasium.Env"
+        raise SettingError(
+            f"{setting('task')} {spec!r}: module {module_name!r} has no callable {attribute!r}; a "
+            "custom task is 'module.path:factory', a function that returns a gymnasium.Env"
         )
     return factory
 
@@ -73,13 +74,16 @@ class GymEnv(SimEnv):
         obs_space, act_space = env.observation_space, env.action_space
         for role, space in (("observation", obs_space), ("action", act_space)):
             if not isinstance(space, gym.spaces.Box):
-                raise ValueError(
-                    f"task {name!r}: its {role} space is {space}; accepted: gymnasium Box spaces"
+                raise SettingError(
+                    f"{setting('task')} {name!r}: its {role} space is {space}; accepted: gymnasium "
+                    "Box spaces"
                 )
         assert isinstance(obs_space, gym.spaces.Box) and isinstance(act_space, gym.spaces.Box)
         low, high = np.asarray(act_space.low, np.float64), np.asarray(act_space.high, np.float64)
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
-            raise ValueError(f"task {name!r}: action bounds must be finite, got {act_space}")
+            raise SettingError(
+                f"{setting('task')} {name!r}: action bounds must be finite, got {act_space}"
+            )
         self._low, self._high = low.ravel(), high.ravel()
         self._set_spaces(int(np.prod(obs_space.shape)), int(np.prod(act_space.shape)))
         self._action_shape = act_space.shape
@@ -143,8 +147,8 @@ class GymEnv(SimEnv):
     def _recorded_frame(self) -> np.ndarray:
         frame = self._env.render()
         if not isinstance(frame, np.ndarray) or frame.ndim != 3:
-            raise ValueError(
-                f"task {self.name!r} has no MuJoCo state and its render() gave "
+            raise SettingError(
+                f"{setting('task')} {self.name!r} has no MuJoCo state and its render() gave "
                 f"{type(frame).__name__}: for clips, make the environment with "
                 "render_mode='rgb_array'"
             )
@@ -161,9 +165,9 @@ def _time_limit(env: gym.Env[Any, Any], name: str) -> int:
     if limit is None:
         limit = getattr(env, "max_episode_steps", None) or getattr(env, "_max_episode_steps", None)
     if not limit:
-        raise ValueError(
-            f"task {name!r} has no time limit; wrap it in gymnasium.wrappers.TimeLimit "
-            "or register it with max_episode_steps"
+        raise SettingError(
+            f"{setting('task')} {name!r} has no time limit; wrap it in "
+            "gymnasium.wrappers.TimeLimit or register it with max_episode_steps"
         )
     return int(limit)
 

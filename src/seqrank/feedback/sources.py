@@ -3,6 +3,7 @@ recorded earlier (`replay:FILE`), or a person (`human`, served by `seqrank label
 
 from __future__ import annotations
 
+from seqrank.errors import SettingError, setting
 from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
@@ -17,8 +18,8 @@ def make_source(teacher: str) -> FeedbackSource:
         assert spec.replay_file is not None
         return ReplaySource.from_file(spec.replay_file)
     if spec.kind == "human":
-        raise ValueError(
-            "teacher 'human' answers on the labelling page: start the run with "
+        raise SettingError(
+            f"{setting('teacher')} 'human' answers on the labelling page: start the run with "
             "`seqrank label online ...` instead of `seqrank train`"
         )
     assert spec.scripted is not None

@@ -166,7 +166,8 @@ def pool_from_run(
     meta = {
         "run": str(run_path),
         "run_reward": str(config.reward),
-        "run_steps": steps,
+        "run_steps": steps,  # with until_step: the end of the last episode taken
+        "until_step": until_step,
         "run_seed": config.seed,
         "random_episodes": random_count,
         "random_seed": seed,

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.config import TrainConfig, config_differences
+from seqrank.errors import SettingError, setting
 from seqrank.training.runs import RunDir
 
 Factory = Callable[[TrainConfig, RunDir], Any]
@@ -50,10 +51,10 @@ def build_trainer(factory: Factory, config: TrainConfig, run: RunDir) -> Any:
         text = str(error)
         if not isinstance(error, MemoryError) and "allocate" not in text:
             raise
-        raise ValueError(
+        raise SettingError(
             f"the run's settings need more memory than there is ({_first_line(text)}); lower "
-            f"--steps ({config.steps}: the replay buffer holds every step), --hidden, "
-            "--batch or the reward model's sizes"
+            f"{setting('steps')} ({config.steps}: the replay buffer holds every step), "
+            f"{setting('hidden')}, {setting('batch')} or the reward model's sizes"
         ) from None
 
 

@@ -62,7 +62,7 @@ def resolve_runtime(
     check_path(path, precision, discrete)
     fast = (where.type == "cuda" and not discrete) if path == "auto" else path == "fast"
     if not fast and precision not in ("auto", "fp32"):
-        raise fast_path_needed(precision)
+        raise fast_path_needed(precision, discrete)
     if precision == "auto":
         precision = "tf32" if fast and where.type == "cuda" else "fp32"
     return Runtime(where, fast, precision)
