@@ -326,7 +326,7 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["label", "offline", "--task", "nope"], "unknown task 'nope'"),
+        (["label", "offline", "--task", "nope"], "unknown --task 'nope'"),
         (["label", "online", "--countdown", "-1"], "--countdown -1.0"),
         (["label", "online", "--teacher", "oracle"], "the labelling page's teacher is the person"),
         (["label", "study", "--participant", "p", "--methods", "root,foo"], "distinct schemes"),
