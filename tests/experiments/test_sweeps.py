@@ -201,6 +201,18 @@ def test_local_engine_runs_skips_resumes_and_reports_failures(tmp_path):
     assert recorded["counts"] == {"skipped": 1, "resumed": 1}
 
 
+def test_a_failed_runs_error_reads_the_same_from_every_engine():
+    """Type name and first line, whatever the engine (the local pool and Ray used to differ:
+    `seqrank.errors.SettingError: ...` against `SettingError: ...`)."""
+    from seqrank.errors import SettingError, setting
+    from seqrank.sweeps.engines import failure_text
+
+    marked = SettingError(f"{setting('knn_k')} 5 must be smaller than {setting('seed_steps')} 1")
+    assert failure_text(marked) == "SettingError: knn_k 5 must be smaller than seed_steps 1"
+    assert failure_text(RuntimeError("out of memory\nat line 3")) == "RuntimeError: out of memory"
+    assert failure_text(KeyError()) == "KeyError"
+
+
 def test_failures_are_retried_then_reported(tmp_path):
     sweep = tiny_sweep(tmp_path / "sweep", retries=2)
     broken = sweep.runs[0]

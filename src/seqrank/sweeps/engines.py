@@ -19,7 +19,6 @@ import os
 import signal
 import threading
 import time
-import traceback
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -44,6 +43,13 @@ def _start_worker() -> None:
     stop = _worker_stop = threading.Event()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, stop_then_interrupt(lambda signum: stop.set()))
+
+
+def failure_text(error: BaseException) -> str:
+    """How a failed run's error is recorded (`sweep.json`, the summary), the same for every
+    engine: its type's name and its first line."""
+    first = (str(error).splitlines() or [""])[0]
+    return f"{type(error).__name__}: {first}" if first else type(error).__name__
 
 
 def train_run(
@@ -158,7 +164,7 @@ class LocalBackend:
             if error is None:
                 yield future, future.result(), None
             else:
-                yield future, None, "".join(traceback.format_exception_only(error)).strip()
+                yield future, None, failure_text(error)
 
     def stop(self) -> None:
         """SIGTERM to every worker: each run stops at its next episode end with a checkpoint
@@ -203,7 +209,7 @@ class RayBackend:
                 yield ref, self.ray.get(ref), None
             except self.ray.exceptions.RayError as error:
                 cause = getattr(error, "cause", None) or error
-                yield ref, None, f"{type(cause).__name__}: {cause}".splitlines()[0]
+                yield ref, None, failure_text(cause)
 
     def stop(self) -> None:
         """Nothing to send: `close` shuts Ray down, which ends its workers; their runs
