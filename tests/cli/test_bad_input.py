@@ -253,18 +253,27 @@ def test_each_front_end_names_the_settings_as_its_user_wrote_them(tmp_path, caps
     assert str(raised.value).startswith("knn_k 2000 must be smaller than seed_steps 1000:")
 
 
-def test_a_resumed_run_names_its_saved_settings_not_flags(given, capsys):
-    """--resume refuses setting options, so an error in the saved settings names them as
-    config.json does, and says where they are."""
+@pytest.mark.parametrize(
+    ("saved", "message"),
+    [
+        ({"path": "reference", "precision": "tf32"}, "error: precision 'tf32' needs the fast"),
+        ({"knn_k": 5000}, "error: knn_k 5000 must be smaller than seed_steps 300"),
+    ],
+)
+def test_a_resumed_run_checks_its_saved_settings_and_names_them_not_flags(
+    saved, message, given, capsys
+):
+    """The saved settings are checked as new ones are (a config.json edited by hand, or
+    written under other rules); --resume refuses setting options, so the error names them
+    as config.json does, and says where they are."""
     import json
 
     config_file = Path(given["run"]) / "config.json"
-    saved = json.loads(config_file.read_text())
-    config_file.write_text(json.dumps({**saved, "path": "reference", "precision": "tf32"}))
+    config_file.write_text(json.dumps({**json.loads(config_file.read_text()), **saved}))
     assert main(["train", "--resume", given["run"]]) == 2
     err = capsys.readouterr().err
-    assert "error: precision 'tf32' needs the fast path" in err and "--precision" not in err
-    assert f"saved in {given['run']}/config.json" in err
+    assert message in err and f"saved in {given['run']}/config.json" in err
+    assert "--precision" not in err and "--knn-k" not in err
 
 
 def test_a_setting_error_reads_plainly_everywhere_and_survives_pickling():

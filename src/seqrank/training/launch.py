@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from seqrank.config import TrainConfig, config_differences
+from seqrank.config import TrainConfig, config_differences, validate
 from seqrank.errors import SettingError, setting
 from seqrank.training.runs import RunDir
 
@@ -91,6 +91,7 @@ def continue_run(path: Path, factory: Factory, expected: TrainConfig | None = No
             )
         if run.finished:
             return Started(run, config, None, resumed=True)
+        validate(config)  # a config.json edited by hand, or written under other rules
         state = run.load_checkpoint()
         trainer = build_trainer(factory, config, run)
         if state is None:  # killed before its first checkpoint: start over
