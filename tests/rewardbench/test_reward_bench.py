@@ -225,8 +225,10 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
     args = ["reward-bench", "run", "--pool", str(pool_file), "--schemes", "pairwise,root"]
     args += ["--seeds", "1", "--budgets", "10", "--session-questions", "10", "--out", str(out)]
     assert main([*args, "--heldout-segments", "40", "--reward-epochs", "3", "--workers", "1"]) == 0
-    printed = capsys.readouterr().out
+    printed, logged = capsys.readouterr()
     assert "| dmc:cartpole_swingup | oracle | plain | 10 | pairwise | 1 |" in printed
+    # not a terminal: a line per finished cell instead of a live bar
+    assert "cells 0/2 (" in logged and "cells 1/2 (" in logged and "cells 2/2 (" in logged
     assert (out / "curves_dmc-cartpole_swingup.png").read_bytes()[:4] == b"\x89PNG"
     assert main(["reward-bench", "run", "--pool", str(tmp_path / "none.npz")]) == 2
     assert "does not exist; build one with" in capsys.readouterr().err

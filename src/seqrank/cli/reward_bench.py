@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -267,6 +268,14 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             console=err,
         ) as progress:
             bar = progress.add_task("cells", total=None)
+            started = time.monotonic()
+
+            def report(done: int, total: int) -> None:
+                progress.update(bar, completed=done, total=total)
+                if not err.is_terminal:  # piped output (logs) gets no live bar: a line a cell
+                    elapsed = time.monotonic() - started
+                    err.print(f"cells {done}/{total} ({elapsed / 60:.1f} min)", highlight=False)
+
             rows = grid(
                 args.pool,
                 args.schemes,
@@ -275,7 +284,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
                 settings,
                 args.out,
                 args.workers,
-                lambda done, total: progress.update(bar, completed=done, total=total),
+                report,
                 learners=args.learners,
                 augments=args.augments,
             )
