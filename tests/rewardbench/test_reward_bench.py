@@ -161,6 +161,9 @@ def test_a_cell_learns_with_each_learner_and_repeats_itself(learner):
     rows = run_cell(synthetic_pool(), cell, SMALL)
     assert [r["questions"] for r in rows] == [10, 30]
     assert all(r["learner"] == learner for r in rows) and rows[-1]["accuracy"] > 0.6
+    # each row keeps what its fit did: epochs, and the learner's own measures
+    assert all(1 <= r["epochs"] <= SMALL.net.epochs for r in rows)
+    assert any(key.startswith(f"{learner}_") for key in rows[-1])
     again = run_cell(synthetic_pool(), cell, SMALL)
     assert [r["accuracy"] for r in again] == [r["accuracy"] for r in rows]
 

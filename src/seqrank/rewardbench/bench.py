@@ -39,7 +39,7 @@ from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
 from seqrank.reward.learners import give_unlabelled, make_learner
-from seqrank.reward.model import RewardModel
+from seqrank.reward.model import RewardModel, RewardTrainResult
 from seqrank.rewardbench.pool import Pool
 
 
@@ -141,7 +141,10 @@ def run_cell(
     source = source if source is not None else make_source(cell.teacher)
     recheck = Recheck() if cell.augment == "checked" else None
     plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck)
-    learner = make_learner(cell.learner, settings.session_questions, generator)
+    # the learner's own stream (SURF's crops and unlabelled batches): the training shuffles
+    # stay those of the plain cell of the same scheme and seed
+    learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
+    learner = make_learner(cell.learner, settings.session_questions, learner_stream)
     labels, tally, session, rows = LabelStore(), _Tally(), 0, []
     started = time.perf_counter()
     for budget in settings.budgets:
@@ -155,7 +158,7 @@ def run_cell(
         if not len(labels):
             continue  # every answer so far was a skip: nothing to learn from
         give_unlabelled(learner, episodes, settings.segment_length, [cell.seed, 3, session])
-        model.train(
+        fit = model.train(
             *labels.tensors(cpu),
             net.epochs,
             net.minibatch,
@@ -164,7 +167,7 @@ def run_cell(
             sync_every_step=False,
             learner=learner,
         )
-        rows.append(_row(pool, cell, tally, len(labels), heldout, model, started))
+        rows.append(_row(pool, cell, tally, len(labels), heldout, model, fit, started))
         if tally.asked < budget:
             break  # a replayed file ran out
     return rows
@@ -177,6 +180,7 @@ def _row(
     pairs: int,
     heldout: Segments,
     model: RewardModel,
+    fit: RewardTrainResult,
     started: float,
 ) -> dict[str, Any]:
     wrong = tally.inferred_wrong / tally.inferred if tally.inferred else None
@@ -194,5 +198,7 @@ def _row(
         "inferred_wrong": wrong,
         "asked_wrong": tally.asked_wrong / tally.strict if tally.strict else None,
         **heldout_measures(model, heldout),
+        "epochs": fit.epochs,  # of this budget's fit, and the learner's own measures
+        **fit.learner,
         "seconds": time.perf_counter() - started,
     }
