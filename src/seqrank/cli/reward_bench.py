@@ -235,9 +235,20 @@ def _train_for_pool(args: argparse.Namespace, err: Console) -> Path:
     return folder
 
 
+def _check_scripted(teachers: list[str]) -> None:
+    from seqrank.feedback.teachers import parse_scripted_teacher
+
+    for teacher in teachers:
+        if teacher == "human" or teacher.startswith("replay:"):
+            raise ValueError(
+                f"teacher {teacher!r}: the grid asks scripted teachers only (labels from "
+                "the page are scored with `seqrank reward-bench score`)"
+            )
+        parse_scripted_teacher(teacher)
+
+
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_folder
-    from seqrank.feedback.teachers import parse_scripted_teacher
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import run_grid as grid
     from seqrank.rewardbench.pool import load_pool
@@ -247,13 +258,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
         for path in args.pool:
             load_pool(path)  # each pool checked before anything is made
         check_folder(args.out, "--out")
-        for teacher in args.teachers:
-            if teacher == "human" or teacher.startswith("replay:"):
-                raise ValueError(
-                    f"teacher {teacher!r}: the grid asks scripted teachers only (labels from "
-                    "the page are scored with `seqrank reward-bench score`)"
-                )
-            parse_scripted_teacher(teacher)
+        _check_scripted(args.teachers)
         settings = BenchSettings(
             tuple(args.budgets),
             args.session_questions,
