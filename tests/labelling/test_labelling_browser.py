@@ -287,9 +287,20 @@ def test_an_answer_refused_as_answered_elsewhere_is_shown_then_the_page_moves_on
             )
             asked = other_tab.get(f"{api}/state").json()["question"]
             body = {"question_id": asked["id"], "choice": "right", "latency_ms": 5}
-            assert other_tab.post(f"{api}/answer", json=body).status_code == 200
+            elsewhere: list[int] = []
+
+            def answer_elsewhere_first(route):
+                # the other tab answers while this page's answer is on its way: had it
+                # answered before the click, the page's poll (every 1.5 s) could show the
+                # next question first and the click would answer that one
+                elsewhere.append(other_tab.post(f"{api}/answer", json=body).status_code)
+                route.continue_()
+
+            page.route("**/api/answer", answer_elsewhere_first)
             page.click("#left")
             wait_error(page, "This question was answered in another tab or window")
+            page.unroute("**/api/answer")
+            assert elsewhere == [200]
             shown = time.monotonic()
             assert "already answered 'right'" in error_text(page)
             wait_question(page, 2, 2)
