@@ -133,6 +133,7 @@ class TrainConfig:
     rime_beta_min: float = RimeSettings.beta_min
     rime_decay_updates: int = RimeSettings.decay_updates
     rime_tau_upper: float = RimeSettings.tau_upper
+    rime_min_epochs: int = RimeSettings.min_epochs
     warm_start: int = 0  # 1: RIME's warm start of the reward model in pre-training
     # MRN (SPEC section 7)
     meta_update_frequency: int = 1_000
@@ -196,7 +197,7 @@ MAX = {
     "record_states": 1,
     "oversample": 100,
     "heldout_pairs": 100_000,
-    "surf_unlabelled_ratio": 1_000,  # unlabelled pairs per question, cut each session
+    "surf_unlabelled_ratio": 1_000,  # unlabelled pairs per question asked, cut each fit
     "surf_unlabelled_batch": 100,
     "warm_start": 1,
 }

@@ -63,6 +63,12 @@ def check_learner(config: TrainConfig) -> None:
             f"{setting('rime_tau_upper')} must be below 0.5, got {config.rime_tau_upper}: "
             "RIME flips a label the model gives less than this probability"
         )
+    if config.reward_learner == "rime" and config.rime_min_epochs > config.reward_epochs:
+        raise SettingError(
+            f"{setting('rime_min_epochs')} {config.rime_min_epochs} exceeds "
+            f"{setting('reward_epochs')} {config.reward_epochs}, the most a fit runs; "
+            f"accepted: 1 to {config.reward_epochs}"
+        )
 
 
 # what the clips of a session show, in session order (the study's instructions: first

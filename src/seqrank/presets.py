@@ -26,7 +26,16 @@ GYM_DEFAULTS = {"hidden": 256, "layers": 2, "batch": 256, "actor_lr": 3e-4, "cri
 
 SUITE_DEFAULTS: dict[str, dict[str, Any]] = {
     "dmc": {"hidden": 1024, "layers": 2, "batch": 1024, "reward_epochs": 50},
-    "metaworld": {"hidden": 256, "layers": 3, "batch": 512, "reward_epochs": 10},
+    # RIME's Meta-World values (`train_RIME.py`, `run_parallel.sh`): beta decays over 600
+    # epochs, a fit stops no sooner than its 7th
+    "metaworld": {
+        "hidden": 256,
+        "layers": 3,
+        "batch": 512,
+        "reward_epochs": 10,
+        "rime_decay_updates": 600,
+        "rime_min_epochs": 7,
+    },
     # Gymnasium tasks (gym:ID, a user's factory): SAC's own MuJoCo settings (Haarnoja et
     # al. 2018: 256 x 2, batch 256, learning rate 3e-4), which SB3 and CleanRL keep; the
     # feedback schedule is the SPEC's defaults (400 answers, 40 every 20 000 steps).

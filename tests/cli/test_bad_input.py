@@ -95,6 +95,10 @@ CASES = [
     ([*TRAIN, "--rime-beta-min", "5"], "--rime-beta-min 5.0 exceeds --rime-beta-max 3.0"),
     ([*TRAIN, "--rime-tau-upper", "0.6"], "--rime-tau-upper must be below 0.5, got 0.6"),
     ([*TRAIN, "--rime-decay-updates", "0"], "--rime-decay-updates must be a whole number from 1"),
+    (
+        [*TRAIN, "--reward-learner", "rime", "--reward-epochs", "20", "--rime-min-epochs", "25"],
+        "--rime-min-epochs 25 exceeds --reward-epochs 20, the most a fit runs; accepted: 1 to 20",
+    ),
     ([*TRAIN, "--warm-start", "2"], "--warm-start must be a whole number from 0 to 1, got 2"),
     ([*TRAIN, "--segment-length", "5000"], "--segment-length 5000 is longer than an episode"),
     # --dry-run makes the checks that need the task's environment too

@@ -11,9 +11,10 @@ import torch
 import torch.nn.functional as F
 
 from seqrank.buffer import ReplayBuffer
+from seqrank.episodes import Episode, EpisodeStore
 from seqrank.reward.entropy import knn_distance
-from seqrank.reward.learners import make_learner
-from seqrank.reward.model import RewardModel
+from seqrank.reward.learners import MAX_UNLABELLED, give_unlabelled, make_learner
+from seqrank.reward.model import PlainLearner, RewardModel
 from seqrank.reward.rime import RimeLearner, RimeSettings, RimeThreshold, kl_to_labels
 from seqrank.reward.surf import SurfLearner, SurfSettings, crop_masks, pseudo_labels
 from seqrank.training.pretrain import EntropyPretraining
@@ -52,7 +53,7 @@ def test_surf_loss_counts_only_confident_unlabelled_pairs_with_the_predicted_lab
     """Pairs predicted with p = 0.99995 (either way) enter with the model's label; one at
     p = 0.52 never does: it would add ~0.65 per draw, the confident ones 4.5e-5."""
     settings = SurfSettings(threshold=0.99, unlabelled_batch=50, loss_weight=1.0, crop=0)
-    learner = SurfLearner(settings, questions=1, generator=torch.Generator().manual_seed(0))
+    learner = SurfLearner(settings, generator=torch.Generator().manual_seed(0))
     segments = np.concatenate([_pair(10.0), _pair(-10.0), _pair(0.1)])
     learner.use_unlabelled(segments, np.array([1.0, 0.0, 0.0, 1.0, 0.0, 1.0]))
     learner.start_fit()
@@ -71,7 +72,7 @@ def test_surf_loss_counts_only_confident_unlabelled_pairs_with_the_predicted_lab
 
 
 def test_surf_with_a_threshold_nothing_reaches_adds_no_loss():
-    learner = SurfLearner(SurfSettings(threshold=1.0, crop=0), 1, torch.Generator())
+    learner = SurfLearner(SurfSettings(threshold=1.0, crop=0), torch.Generator())
     learner.use_unlabelled(_pair(3.0), np.array([1.0, 0.0]))
     loss = learner._unlabelled_loss(_LinearReward(), torch.Size([1, 8]))  # type: ignore[arg-type]
     assert loss.item() == 0.0 and learner.fit_metrics()["surf_pseudo_labels"] == 0
@@ -167,12 +168,49 @@ def test_rime_selection_leaves_out_or_flips_back_the_wrong_labels_of_a_fitted_mo
 
 def test_learners_by_name():
     generator = torch.Generator()
-    assert isinstance(make_learner("surf", 10, generator), SurfLearner)
-    assert make_learner("surf", 10, generator).unlabelled_pairs == 10 * 10
-    assert isinstance(make_learner("rime", 10, generator), RimeLearner)
-    assert make_learner("plain", 10, generator).unlabelled_pairs == 0
+    assert isinstance(make_learner("surf", generator), SurfLearner)
+    assert make_learner("surf", generator).unlabelled_per_question == 10
+    assert isinstance(make_learner("rime", generator), RimeLearner)
+    assert make_learner("plain", generator).unlabelled_per_question == 0
     with pytest.raises(ValueError):
-        make_learner("best", 10, generator)
+        make_learner("best", generator)
+
+
+def test_surf_cuts_unlabelled_pairs_for_every_question_asked_so_far_up_to_the_cap():
+    """SURF's buffer gains `inv_label_ratio` pairs a question: before each fit ours holds as
+    many, from the kept episodes, and never more than MAX_UNLABELLED."""
+    episodes = EpisodeStore(4)
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        episodes.add(
+            Episode(rng.normal(size=(100, 3)), rng.normal(size=(100, 1)), rng.normal(size=100))
+        )
+    learner = SurfLearner(SurfSettings(unlabelled_ratio=3), torch.Generator())
+    cut = []
+    for asked in (5, 40, 4000):
+        give_unlabelled(learner, episodes, 10, asked, [0, 3, asked])
+        assert learner.unlabelled is not None and learner.truth is not None
+        cut.append((len(learner.unlabelled), len(learner.truth)))
+    assert cut == [(30, 15), (240, 120), (2 * MAX_UNLABELLED, MAX_UNLABELLED)]
+    assert PlainLearner.unlabelled_per_question == 0  # the plain fit wants none
+
+
+@pytest.mark.parametrize("min_epochs,max_epochs,expected", [(1, 30, 1), (12, 30, 12), (12, 5, 5)])
+def test_a_rime_fit_runs_its_minimum_epochs_before_the_accuracy_may_stop_it(
+    min_epochs, max_epochs, expected
+):
+    """A stopping accuracy every epoch reaches (0): the plain fit stops after one epoch,
+    RIME's only after `min_epochs` (never past `max_epochs`)."""
+    segments, first, second, truth = segment_pairs(60, seed=1)
+    model = RewardModel(2, 3, 16, 2, 1e-3, CPU)
+    learner = RimeLearner(RimeSettings(min_epochs=min_epochs))
+    result = model.train(
+        segments, first, second, truth, max_epochs, 32, 0.0, torch.Generator(), learner=learner
+    )
+    assert result.epochs == expected
+    assert learner.threshold.updates == expected  # one selection per epoch trained
+    plain = model.train(segments, first, second, truth, max_epochs, 32, 0.0, torch.Generator())
+    assert plain.epochs == 1
 
 
 class _StillAgent:

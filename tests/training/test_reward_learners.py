@@ -20,7 +20,12 @@ CASES = {  # (settings, kill at, checkpoint resumed from)
     ),
     # RIME with its warm start on the fast path (run here on the CPU), resumed after its
     # first two sessions (1200, 1700): the restored selection state must carry on as it was
-    "rime": (dict(reward_learner="rime", warm_start=1, path="fast", steps=2400), 2100, 2000),
+    # (a fit here runs at most 5 epochs, and at least 3)
+    "rime": (
+        dict(reward_learner="rime", rime_min_epochs=3, warm_start=1, path="fast", steps=2400),
+        2100,
+        2000,
+    ),
 }
 
 
@@ -32,11 +37,13 @@ def test_a_run_with_the_learner_trains_logs_it_and_resumes_exactly(name, tmp_pat
     sessions = [r for r in finished.run_dir.read_metrics() if r["kind"] == "feedback"]
     assert len(sessions) == 3
     if name == "surf":
-        assert all(r["surf_unlabelled_pairs"] == 10 * 10 for r in sessions)
+        # 10 per question asked so far: 10 questions a session
+        assert [r["surf_unlabelled_pairs"] for r in sessions] == [100, 200, 300]
         assert sum(r["surf_pseudo_labels"] for r in sessions) > 0
     else:
         assert all(r["rime_kept"] + r["rime_flipped"] + r["rime_dropped"] > 0 for r in sessions)
         assert sessions[-1]["rime_beta"] < 3.0  # the uncertainty weight decays
+        assert all(3 <= r["reward_epochs"] <= 5 for r in sessions)
     resumed, state = resume_after_kill(tmp_path, config, kill_at, checkpoint)
     if name == "rime":
         assert state["reward_learner"]["updates"] > 0 and state["reward_learner"]["rho"] > 0
@@ -75,3 +82,8 @@ def test_the_learner_settings_are_sweep_and_config_fields():
         ValueError, match="unknown reward_learner 'best'; accepted: plain, surf, rime"
     ):
         resolve_config("dmc:cartpole_swingup", "small", {"reward_learner": "best"})
+    # RIME's own values per suite: DMControl 17 epochs at least and beta over 60 epochs,
+    # Meta-World 7 and 600 (`run_parallel.sh`, `train_RIME.py`)
+    metaworld = resolve_config("button-press-v3", "small", {"reward_learner": "rime"})
+    assert (config.rime_min_epochs, config.rime_decay_updates) == (17, 60)
+    assert (metaworld.rime_min_epochs, metaworld.rime_decay_updates) == (7, 600)

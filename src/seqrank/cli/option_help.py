@@ -70,6 +70,7 @@ MEANINGS = {
     "rime_beta_min": "RIME: the uncertainty weight at the end",
     "rime_decay_updates": "RIME: reward-training epochs over which beta falls to its floor",
     "rime_tau_upper": "RIME: flip a label the model gives a probability below this (< 0.5)",
+    "rime_min_epochs": "RIME: epochs a fit runs before its accuracy may stop it",
     "warm_start": "1: RIME's warm start of the reward model during pre-training",
     "meta_update_frequency": "MRN: steps between meta updates",
     "meta_loss_weight": "MRN: weight of the meta loss",

@@ -56,7 +56,8 @@ class Learner(Protocol):
     The fit asks it, each epoch, which pairs (and labels) to train on, and, each
     minibatch, for the loss; it keeps what it needs between fits (`state_dict`)."""
 
-    unlabelled_pairs: int  # unlabelled segment pairs it wants before each fit (0: none)
+    unlabelled_per_question: int  # unlabelled pairs it wants per question asked (0: none)
+    min_epochs: int  # epochs a fit runs before the accuracy may stop it
 
     def use_unlabelled(self, segments: np.ndarray, true_returns: np.ndarray) -> None:
         """Segments (2U, H, D) forming pairs (2i, 2i + 1), and their true returns (2U,)."""
@@ -101,7 +102,8 @@ def bradley_terry(
 class PlainLearner:
     """Every labelled pair, every epoch, with its label (PEBBLE)."""
 
-    unlabelled_pairs = 0
+    unlabelled_per_question = 0
+    min_epochs = 1
 
     def use_unlabelled(self, segments: np.ndarray, true_returns: np.ndarray) -> None:
         return None
@@ -188,7 +190,8 @@ class RewardModel:
         """Bradley-Terry on segment sums; each member its own shuffle of the epoch's pairs.
 
         labels: probability that `first` is preferred. Stops early once the mean train
-        accuracy over hard labels exceeds `stop_accuracy`. `sync_every_step` reads the loss
+        accuracy over hard labels exceeds `stop_accuracy`, but not before the learner's
+        `min_epochs`. `sync_every_step` reads the loss
         back after every minibatch, as the reference code does; otherwise the sums stay on
         the device and are read once per epoch, for the stopping rule. `learner` (plain by
         default) chooses each epoch's pairs and each minibatch's loss.
@@ -196,7 +199,7 @@ class RewardModel:
         learner = learner if learner is not None else PlainLearner()
         learner.start_fit()
         loss_value, accuracy, epochs = 0.0, 0.0, 0
-        for epochs in range(1, max_epochs + 1):  # noqa: B007 (the count is returned)
+        for epochs in range(1, max_epochs + 1):
             first_e, second_e, labels_e = learner.epoch_pairs(
                 self, segments, (first, second, labels)
             )
@@ -221,7 +224,7 @@ class RewardModel:
             loss_sum, correct, counted = host_totals
             loss_value = float(loss_sum) / max(steps, 1)  # (a learner may keep no pair)
             accuracy = float(correct / counted) if counted else 1.0
-            if accuracy > stop_accuracy:
+            if accuracy > stop_accuracy and epochs >= learner.min_epochs:
                 break
         return RewardTrainResult(epochs, loss_value, accuracy, learner.fit_metrics())
 

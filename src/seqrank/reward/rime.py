@@ -17,8 +17,10 @@ Learned from the paper and its code (github.com/CJReinforce/RIME_ICML2024,
 values and caps the term at 3; we do too. Where we differ: a pair both trusted and above
 the upper bound is trained once, flipped (theirs trains it twice); the statistics are
 updated with the pairs kept with their own label; soft labels (equal: 0.5) use the true
-KL, not the cross-entropy. With no history (rho = 0) the lower bound is large: the first
-epoch trusts every pair, as theirs does.
+KL, not the cross-entropy; the learning rate has no warm-up (theirs rises linearly over
+the run's first max_feedback / reward_batch x least_reward_update / 3 epochs). With no
+history (rho = 0) the lower bound is large: the first epoch trusts every pair, as theirs
+does.
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ class RimeSettings:
       for DMControl in `train_RIME.py`; 600 for Meta-World).
     - tau_upper 0.001: labels the model gives a probability below this are flipped
       (`flipping_tau = 0.001`: KL above -ln 0.001 = 6.9).
+    - min_epochs 17: a fit runs at least this many epochs before its accuracy may stop it.
+      Their early stop (`train_RIME.py`) needs `epoch > least_reward_update` (0-based),
+      with 15 for DMControl in `run_parallel.sh` (5 for Meta-World: 7). Without it a fit
+      can stop after one epoch: the accuracy is measured on the labels RIME keeps or flips,
+      which the model already agrees with.
     """
 
     alpha: float = 0.5
@@ -58,6 +65,7 @@ class RimeSettings:
     beta_min: float = 1.0
     decay_updates: int = 60
     tau_upper: float = 0.001
+    min_epochs: int = 17
 
 
 def kl_to_labels(p_first: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
@@ -113,6 +121,7 @@ class RimeLearner(PlainLearner):
 
     def __init__(self, settings: RimeSettings):
         self.threshold = RimeThreshold(settings)
+        self.min_epochs = settings.min_epochs
         self.last: dict[str, float] = {}
 
     def start_fit(self) -> None:

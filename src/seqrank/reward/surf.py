@@ -14,9 +14,10 @@ Two additions to the Bradley-Terry fit, learned from the paper and its code
 Where this differs from their code: their segments are cut `2 * window` steps longer than
 the teacher sees and cropped to H +- 5 steps; ours are exactly what the teacher (or the
 person) saw, so a crop is a sub-segment of length H - `crop` to H. Their unlabelled pairs
-accumulate in a buffer over the run; ours are drawn afresh for each fit from the kept
-episodes (by the run seed and session: nothing to checkpoint). The unlabelled batch is
-drawn at random (with replacement) per member and step.
+accumulate in a buffer over the run, `inv_label_ratio` of them per question asked; ours
+are as many, drawn afresh for each fit from the kept episodes (by the run seed and
+session: nothing to checkpoint), so later fits also see pairs from the recent policy.
+The unlabelled batch is drawn at random (with replacement) per member and step.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ class SurfSettings:
     - threshold 0.99: the confidence a pseudo-label needs (`threshold_u`; 0.99 in the
       README's DMC and Meta-World commands and the RIME authors' `run_parallel.sh`; their
       yaml default is 0.95).
-    - unlabelled_ratio 10: unlabelled pairs per question of a session (`inv_label_ratio`;
+    - unlabelled_ratio 10: unlabelled pairs per question asked so far (`inv_label_ratio`;
       `config/train_PEBBLE_semi_dataaug.yaml` and the Meta-World command; 100 in the
       walker command, which asks 10 questions a session).
     - unlabelled_batch 4: unlabelled pairs per labelled pair in a minibatch (`mu`; 4 in
@@ -86,9 +87,9 @@ def pseudo_labels(logits: torch.Tensor, threshold: float) -> tuple[torch.Tensor,
 class SurfLearner(PlainLearner):
     """The plain fit's epochs with SURF's loss (`reward.model.Learner`)."""
 
-    def __init__(self, settings: SurfSettings, questions: int, generator: torch.Generator):
+    def __init__(self, settings: SurfSettings, generator: torch.Generator):
         self.settings, self.generator = settings, generator
-        self.unlabelled_pairs = settings.unlabelled_ratio * questions
+        self.unlabelled_per_question = settings.unlabelled_ratio
         self.unlabelled: torch.Tensor | None = None  # (2U, H, D) on the model's device
         self.truth: torch.Tensor | None = None  # (U,): whether the first is truly better
         self._counts: torch.Tensor | None = None  # drawn, used, used and wrong (this fit)

@@ -144,7 +144,7 @@ def run_cell(
     # the learner's own stream (SURF's crops and unlabelled batches): the training shuffles
     # stay those of the plain cell of the same scheme and seed
     learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
-    learner = make_learner(cell.learner, settings.session_questions, learner_stream)
+    learner = make_learner(cell.learner, learner_stream)
     labels, tally, session, rows = LabelStore(), _Tally(), 0, []
     started = time.perf_counter()
     for budget in settings.budgets:
@@ -157,7 +157,9 @@ def run_cell(
             session += 1
         if not len(labels):
             continue  # every answer so far was a skip: nothing to learn from
-        give_unlabelled(learner, episodes, settings.segment_length, [cell.seed, 3, session])
+        give_unlabelled(
+            learner, episodes, settings.segment_length, tally.asked, [cell.seed, 3, session]
+        )
         fit = model.train(
             *labels.tensors(cpu),
             net.epochs,

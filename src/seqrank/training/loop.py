@@ -138,7 +138,7 @@ def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
         answered.segments, answered.record, t.labels, request.session, request.path_unchecked
     )
     metrics.count_session(c, outcome.stats)
-    result = t.reward.train(config.seed, c.sessions)
+    result = t.reward.train(config.seed, c.sessions, c.asked)
     t.reward.relabel()
     if first:
         reset_critic(t.agent, t.replay, config.updates_after_reset, config.batch, t.generator)

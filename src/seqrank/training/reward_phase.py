@@ -46,13 +46,16 @@ class RewardLearning:
         """The learned reward for new transitions; none before the first session."""
         return self.model.reward if trained else None
 
-    def train(self, run_seed: int, session: int) -> RewardTrainResult | None:
-        """Fit every label so far. Every answer may be a skip (B-Pref's skip teacher on
-        all-negative returns): then there is nothing to fit, and the model stays."""
+    def train(self, run_seed: int, session: int, asked: int) -> RewardTrainResult | None:
+        """Fit every label so far (`asked`: the questions asked so far). Every answer may be
+        a skip (B-Pref's skip teacher on all-negative returns): then there is nothing to
+        fit, and the model stays."""
         if not len(self.labels):
             return None
         s = self.settings
-        give_unlabelled(self.learner, self.episodes, s.segment_length, [run_seed, 3, session])
+        give_unlabelled(
+            self.learner, self.episodes, s.segment_length, asked, [run_seed, 3, session]
+        )
         segments, first, second, labels = self.labels.tensors(self.model.device)
         return self.model.train(
             segments,

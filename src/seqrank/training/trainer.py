@@ -171,7 +171,6 @@ class Trainer:
         )
         learner = make_learner(
             config.reward_learner,
-            config.reward_batch,
             self.generator,
             SurfSettings(
                 config.surf_threshold,
@@ -186,6 +185,7 @@ class Trainer:
                 config.rime_beta_min,
                 config.rime_decay_updates,
                 config.rime_tau_upper,
+                config.rime_min_epochs,
             ),
         )
         return RewardLearning(
