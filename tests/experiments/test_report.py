@@ -194,6 +194,23 @@ def test_runs_of_one_method_with_other_settings_are_reported_apart(tmp_path, cap
     assert f"note: {note}" in capsys.readouterr().err
 
 
+def test_a_learners_own_settings_split_only_that_learners_runs(tmp_path):
+    """A RIME setting that plain runs hold with other values (or, made before it existed,
+    not at all) does not split them; RIME runs that differ in it are reported apart."""
+    fake_run(tmp_path / "plain_0", "walker_walk", "root", 0, [1.0, 2.0])
+    fake_run(tmp_path / "plain_1", "walker_walk", "root", 1, [1.0, 4.0], rime_min_epochs=17)
+    for seed, epochs in enumerate([17, 5]):
+        settings = dict(reward_learner="rime", rime_min_epochs=epochs, surf_crop=seed)
+        fake_run(tmp_path / f"rime_{seed}", "walker_walk", "root", seed, [1.0, 3.0], **settings)
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["methods"] == [
+        "root",
+        "root+rime/rime_min_epochs=17",
+        "root+rime/rime_min_epochs=5",
+    ]
+
+
 def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
     fake_run(tmp_path / "root_plain", "walker_walk", "root", 0, [1.0, 300.0])
     fake_run(tmp_path / "root_checked", "walker_walk", "root", 0, [1.0, 350.0], augment="checked")

@@ -164,6 +164,10 @@ def test_a_cell_learns_with_each_learner_and_repeats_itself(learner):
     # each row keeps what its fit did: epochs, and the learner's own measures
     assert all(1 <= r["epochs"] <= SMALL.net.epochs for r in rows)
     assert any(key.startswith(f"{learner}_") for key in rows[-1])
+    if learner == "surf":  # 10 unlabelled pairs per question asked so far
+        assert [r["surf_unlabelled_pairs"] for r in rows] == [100, 300]
+    else:  # a RIME fit runs its 17 epochs at least (of at most SMALL's 20)
+        assert all(r["epochs"] >= 17 for r in rows)
     again = run_cell(synthetic_pool(), cell, SMALL)
     assert [r["accuracy"] for r in again] == [r["accuracy"] for r in rows]
 

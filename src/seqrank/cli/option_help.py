@@ -61,8 +61,9 @@ MEANINGS = {
     "reward_learner": "plain (Bradley-Terry), surf (pseudo-labels, crops) or rime (robust "
     "label selection)",
     "surf_threshold": "SURF: confidence a pseudo-label needs",
-    "surf_unlabelled_ratio": "SURF: unlabelled pairs per labelled pair",
-    "surf_unlabelled_batch": "SURF: unlabelled pairs per minibatch",
+    "surf_unlabelled_ratio": "SURF: unlabelled pairs cut before a fit per question asked so far "
+    "(at most 10 000)",
+    "surf_unlabelled_batch": "SURF: unlabelled pairs per labelled pair of a minibatch",
     "surf_loss_weight": "SURF: weight of the pseudo-label loss",
     "surf_crop": "SURF: most steps a temporal crop removes",
     "rime_alpha": "RIME: alpha of the loss bound -ln(rho) + alpha * rho",

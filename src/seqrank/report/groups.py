@@ -60,7 +60,11 @@ FEEDBACK_ONLY = {
     "rime_beta_min",
     "rime_decay_updates",
     "rime_tau_upper",
+    "rime_min_epochs",
 }
+# settings only one reward learner reads: runs of another learner may hold any value (or,
+# made before the setting existed, none)
+LEARNER_PREFIXES = {"surf": "surf_", "rime": "rime_"}
 
 
 def split_by_settings(
@@ -89,6 +93,14 @@ def split_by_settings(
 
 def _differing(members: list[RunResult]) -> list[str]:
     ignored = SAME_METHOD | (FEEDBACK_ONLY if members[0].baseline else set())
+    learner = members[0].settings.get("reward_learner", "plain")  # one per cell
+    ignored |= {
+        key
+        for run in members
+        for key in run.settings
+        for name, prefix in LEARNER_PREFIXES.items()
+        if key.startswith(prefix) and name != learner
+    }
     keys = {key for run in members for key in run.settings} - ignored
     return sorted(k for k in keys if len({repr(run.settings.get(k)) for run in members}) > 1)
 
