@@ -172,6 +172,25 @@ def test_the_true_reward_agent_is_a_column_a_reference_and_the_unit_of_relative_
     assert csv_text.splitlines()[0].endswith("relative,relative_low,relative_high")
 
 
+def test_every_curve_draws_the_true_reward_agent_as_a_dashed_black_reference(tmp_path, monkeypatch):
+    from seqrank.report import plots
+
+    for seed, (mid, end) in enumerate([(400.0, 600.0), (500.0, 700.0)]):
+        fake_run(
+            tmp_path / f"true_{seed}", "walker_walk", "sequential", seed, [mid, end], reward="true"
+        )
+        fake_run(tmp_path / f"root_{seed}", "walker_walk", "root", seed, [100.0, 200.0 + seed])
+    figures = []
+    monkeypatch.setattr(plots.plt, "close", figures.append)  # keep the figures to inspect
+    assert main(["report", str(tmp_path), "--bootstrap", "100", "--out", str(tmp_path / "r")]) == 0
+    curves = figures[0].axes[0]  # plot_curves draws first
+    lines = {line.get_label(): line for line in curves.get_lines()}
+    reference = lines["true-reward (n=2)"]
+    assert reference.get_linestyle() == "--" and reference.get_color() == "black"
+    assert list(reference.get_ydata()) == [450.0, 650.0]  # the mean over seeds at each step
+    assert lines["root (n=2)"].get_linestyle() == "-"
+
+
 def test_runs_of_one_method_with_other_settings_are_reported_apart(tmp_path, capsys):
     for seed, (feedback, value) in enumerate([(100, 300.0), (100, 320.0), (200, 500.0)]):
         path = tmp_path / f"root_{seed}"
