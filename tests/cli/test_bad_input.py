@@ -201,6 +201,7 @@ CASES = [
     (["reward-bench", "run", "--pool", "m.npz", "--budgets", "50,25"], "argument --budgets: '50"),
     (["reward-bench", "run", "--pool", "m.npz", "--teachers", "oracle,,x"], "an empty teacher"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
+    (["reward-bench", "report", "{dir}"], "no rows in {dir}: give a folder that"),
     # watch, study-report
     (["watch", "{file}"], "no run directory at {file}"),
     (["watch", "{run}"], "{run} has no checkpoint yet"),

@@ -19,7 +19,13 @@ from seqrank.rewardbench.pool import (
     random_episodes,
     save_pool,
 )
-from seqrank.rewardbench.summary import format_table, interval, summarise
+from seqrank.rewardbench.summary import (
+    format_effects,
+    format_table,
+    interval,
+    paired_effects,
+    summarise,
+)
 
 SMALL = BenchSettings(
     budgets=(10, 30),
@@ -225,6 +231,63 @@ def test_the_summary_has_a_mean_and_t_interval_per_scheme_and_budget():
         ("root", 20),
     ]
     assert summary[0]["accuracy"][0] == pytest.approx(0.6) and summary[0]["inferred_wrong"] is None
+
+
+def effect_rows(differences, learner="rime", seeds_of_baseline=4):
+    """Rows of plain and one learner on one task, teacher and scheme at 10 questions: the
+    learner's accuracy is plain's plus the given difference, seed by seed."""
+    rows = []
+    for seed in range(seeds_of_baseline):
+        plain = 0.6 + seed / 10  # seeds differ far more than the methods do
+        common = {"task": "t", "teacher": "mistake", "scheme": "root", "questions": 10}
+        common |= {"seed": seed, "pairs": 10, "spearman": plain}
+        rows.append({**common, "learner": "plain", "accuracy": plain, "inferred_wrong": 0.3})
+        if seed < len(differences):
+            learned = plain + differences[seed]
+            row = {**common, "learner": learner, "accuracy": learned, "spearman": learned}
+            rows.append({**row, "inferred_wrong": 0.1})
+    return rows
+
+
+def test_each_method_is_compared_with_plain_seed_by_seed():
+    [effect] = paired_effects(effect_rows([0.02, 0.03, 0.04]))
+    # three pairs (the baseline's fourth seed has no partner); the seeds' spread cancels
+    assert (effect["method"], effect["baseline"], effect["seeds"]) == ("rime", "plain", 3)
+    mean, _, high = effect["accuracy_difference"]
+    assert mean == pytest.approx(0.03)
+    assert high - mean == pytest.approx(0.01 * 4.303 / 3**0.5, rel=1e-3)  # t(2) 97.5%
+    assert effect["spearman_difference"][0] == pytest.approx(0.03)
+    assert (effect["inferred_wrong"], effect["baseline_inferred_wrong"]) == pytest.approx(
+        (0.1, 0.3)
+    )
+    assert effect["verdict"] == "helps"
+    assert paired_effects(effect_rows([-0.02, -0.03, -0.04]))[0]["verdict"] == "hurts"
+    assert paired_effects(effect_rows([-0.02, 0.0, 0.02]))[0]["verdict"] == "no clear difference"
+    assert paired_effects(effect_rows([0.5]))[0]["verdict"] == "one seed"
+    # checked augmentation is its own method; rows of the baseline alone compare nothing
+    checked = [{**r, "augment": "checked"} for r in effect_rows([0.0, 0.1], learner="plain")]
+    names = {e["method"] for e in paired_effects(effect_rows([0.1, 0.2]) + checked[1::2])}
+    assert names == {"rime", "plain+checked"}
+    assert paired_effects(effect_rows([])) == []
+    table = format_effects(paired_effects(effect_rows([0.02, 0.03, 0.04])))
+    assert "| t | mistake | root | rime vs plain | 10 | 3 | +0.030 [" in table
+    assert table.rstrip().endswith("| 0.100 (0.300) | helps |")
+
+
+def test_the_report_action_rewrites_a_folders_table_and_effects(tmp_path, capsys):
+    folder = tmp_path / "grid"
+    folder.mkdir()
+    rows = effect_rows([0.02, 0.03, 0.04])
+    (folder / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["reward-bench", "report", str(folder)]) == 0
+    assert "| t | mistake | rime | 10 | root | 3 |" in capsys.readouterr().out
+    assert "rime vs plain" in (folder / "effects.md").read_text()
+    assert json.loads((folder / "effects.json").read_text())[0]["verdict"] == "helps"
+    assert (folder / "curves_t.png").read_bytes()[:4] == b"\x89PNG"
+    assert main(["reward-bench", "report", str(folder), "--baseline", "surf"]) == 2
+    assert "--baseline 'surf' has no rows in" in capsys.readouterr().err
+    assert main(["reward-bench", "report", str(folder), "--baseline", "rime"]) == 0
+    assert "plain vs rime" in (folder / "effects.md").read_text()
 
 
 def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, capsys):

@@ -61,6 +61,7 @@ def add_parser(commands: Any) -> None:
     _add_pool(actions)
     _add_grid(actions)
     _add_score(actions)
+    _add_report(actions)
 
 
 def _add_pool(actions: Any) -> None:
@@ -183,6 +184,20 @@ def _add_score(actions: Any) -> None:
     score.set_defaults(handler=run_score)
 
 
+def _add_report(actions: Any) -> None:
+    report = actions.add_parser(
+        "report",
+        help="a grid folder's table, curves and paired effects, from its rows (nothing runs)",
+    )
+    report.add_argument("folder", type=Path, help="a grid's folder (`run --out`: its rows.jsonl)")
+    report.add_argument(
+        "--baseline",
+        default="plain",
+        help="the method every other is compared with, seed by seed, in effects.md (plain)",
+    )
+    report.set_defaults(handler=run_report)
+
+
 def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_file
     from seqrank.rewardbench.pool import pool_from_run, save_pool
@@ -252,7 +267,6 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import run_grid as grid
     from seqrank.rewardbench.pool import load_pool
-    from seqrank.rewardbench.summary import format_table, plot_task, summarise
 
     try:
         for path in args.pool:
@@ -295,15 +309,51 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             )
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    _write_report(rows, args.out, "plain", out)
+    return 0
+
+
+def run_report(args: argparse.Namespace, out: Console, err: Console) -> int:
+    from seqrank.rewardbench.summary import method
+    from seqrank.rows import read_rows
+
+    rows = read_rows(args.folder / "rows.jsonl")
+    if not rows:
+        raise UsageError(f"no rows in {args.folder}: give a folder that `reward-bench run` wrote")
+    methods = sorted({method(row) for row in rows})
+    if args.baseline not in methods:
+        raise UsageError(
+            f"--baseline {args.baseline!r} has no rows in {args.folder}; "
+            f"accepted: {', '.join(methods)}"
+        )
+    _write_report(rows, args.folder, args.baseline, out)
+    return 0
+
+
+def _write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: Console) -> None:
+    """table.md, summary.json and the curves; with other methods beside the baseline, also
+    effects.md and effects.json (each against the baseline, seed by seed)."""
+    from seqrank.rewardbench.summary import (
+        format_effects,
+        format_table,
+        paired_effects,
+        plot_task,
+        summarise,
+    )
+
     summary = summarise(rows)
     table = format_table(summary)
-    (args.out / "table.md").write_text(table)
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    (folder / "table.md").write_text(table)
+    (folder / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     for task in sorted({e["task"] for e in summary}):
-        plot_task(summary, task, args.out / f"curves_{task.replace(':', '-')}.png")
+        plot_task(summary, task, folder / f"curves_{task.replace(':', '-')}.png")
     out.print(table, highlight=False, markup=False)
-    out.print(f"rows, table and curves in {args.out}", highlight=False)
-    return 0
+    effects = paired_effects(rows, baseline)
+    if effects:
+        (folder / "effects.md").write_text(format_effects(effects))
+        (folder / "effects.json").write_text(json.dumps(effects, indent=1) + "\n")
+        out.print(f"each method against {baseline}, seed by seed: {folder / 'effects.md'}")
+    out.print(f"rows, table and curves in {folder}", highlight=False)
 
 
 def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
