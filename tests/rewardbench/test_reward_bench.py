@@ -270,8 +270,39 @@ def test_each_method_is_compared_with_plain_seed_by_seed():
     assert names == {"rime", "plain+checked"}
     assert paired_effects(effect_rows([])) == []
     table = format_effects(paired_effects(effect_rows([0.02, 0.03, 0.04])))
-    assert "| t | mistake | root | rime vs plain | 10 | 3 | +0.030 [" in table
-    assert table.rstrip().endswith("| 0.100 (0.300) | helps |")
+    assert "| t | mistake | rime vs plain | root | 10 | 3 | +0.030 [" in table
+    assert (
+        "| 0.100 (0.300) | helps |" in table and "1 in 20 reads helps or hurts by chance" in table
+    )
+    assert "| +0.500 | +0.500 |" in format_effects(paired_effects(effect_rows([0.5])))
+
+
+def test_a_method_is_paired_with_plain_of_its_own_teacher_scheme_and_budget():
+    """Plain's accuracy differs by teacher, scheme and budget far more than the method's gain
+    does: pairing across them would give other differences."""
+    gains = {("oracle", "root", 10): 0.01, ("oracle", "root", 20): 0.02}
+    gains |= {("oracle", "pairwise", 10): -0.03, ("mistake", "root", 10): 0.04}
+    rows = []
+    for k, ((teacher, scheme, questions), gain) in enumerate(gains.items()):
+        for seed in range(3):
+            common = {"task": "t", "teacher": teacher, "scheme": scheme, "questions": questions}
+            common |= {"seed": seed, "pairs": questions, "spearman": 0.5, "inferred_wrong": None}
+            plain = 0.3 + k / 10 + seed / 100
+            rows.append({**common, "learner": "plain", "accuracy": plain})
+            rows.append({**common, "learner": "surf", "accuracy": plain + gain})
+    found = {
+        (e["teacher"], e["scheme"], e["questions"]): e["accuracy_difference"][0]
+        for e in paired_effects(rows)
+    }
+    assert found == pytest.approx(gains)
+    # schemes in the package's order, then budgets
+    assert [e["scheme"] for e in paired_effects(rows) if e["teacher"] == "oracle"] == [
+        "pairwise",
+        "root",
+        "root",
+    ]
+    with pytest.raises(ValueError, match="two rows of surf for task t, teacher oracle, scheme"):
+        paired_effects([*rows, rows[1]])
 
 
 def test_the_report_action_rewrites_a_folders_table_and_effects(tmp_path, capsys):
@@ -288,6 +319,10 @@ def test_the_report_action_rewrites_a_folders_table_and_effects(tmp_path, capsys
     assert "--baseline 'surf' has no rows in" in capsys.readouterr().err
     assert main(["reward-bench", "report", str(folder), "--baseline", "rime"]) == 0
     assert "plain vs rime" in (folder / "effects.md").read_text()
+    # a folder merged by hand with one cell twice: named, not paired at random
+    (folder / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in [*rows, rows[0]]))
+    assert main(["reward-bench", "report", str(folder)]) == 2
+    assert "two rows of plain for task t, teacher mistake" in capsys.readouterr().err
 
 
 def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, capsys):
@@ -299,6 +334,27 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
     assert "| dmc:cartpole_swingup | oracle | plain | 10 | pairwise | 1 |" in printed
     # not a terminal: a line per finished cell instead of a live bar
     assert "cells 0/2 (" in logged and "cells 1/2 (" in logged and "cells 2/2 (" in logged
+    assert "no other method shares a cell with plain" in printed
+    assert not (out / "effects.md").exists()
+    # another method beside plain: each is compared with plain, seed by seed
+    assert (
+        main(
+            [
+                *args,
+                "--heldout-segments",
+                "40",
+                "--reward-epochs",
+                "3",
+                "--workers",
+                "1",
+                "--augments",
+                "full,checked",
+            ]
+        )
+        == 0
+    )
+    assert "each method against plain, seed by seed" in capsys.readouterr().out
+    assert "| plain+checked vs plain | root | 10 | 1 |" in (out / "effects.md").read_text()
     assert (out / "curves_dmc-cartpole_swingup.png").read_bytes()[:4] == b"\x89PNG"
     assert main(["reward-bench", "run", "--pool", str(tmp_path / "none.npz")]) == 2
     assert "does not exist; build one with" in capsys.readouterr().err

@@ -309,7 +309,10 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             )
     except ValueError as problem:
         raise UsageError(str(problem)) from None
-    _write_report(rows, args.out, "plain", out)
+    try:
+        _write_report(rows, args.out, "plain", out)
+    except ValueError as problem:  # two rows of one cell (a folder merged by hand)
+        raise UsageError(f"{args.out}: {problem}") from None
     return 0
 
 
@@ -326,7 +329,10 @@ def run_report(args: argparse.Namespace, out: Console, err: Console) -> int:
             f"--baseline {args.baseline!r} has no rows in {args.folder}; "
             f"accepted: {', '.join(methods)}"
         )
-    _write_report(rows, args.folder, args.baseline, out)
+    try:
+        _write_report(rows, args.folder, args.baseline, out)
+    except ValueError as problem:  # two rows of one cell: they cannot be paired
+        raise UsageError(f"{args.folder}: {problem}") from None
     return 0
 
 
@@ -349,10 +355,15 @@ def _write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: 
         plot_task(summary, task, folder / f"curves_{task.replace(':', '-')}.png")
     out.print(table, highlight=False, markup=False)
     effects = paired_effects(rows, baseline)
+    for name in ("effects.md", "effects.json"):  # none stale from rows of another time
+        (folder / name).unlink(missing_ok=True)
     if effects:
         (folder / "effects.md").write_text(format_effects(effects))
         (folder / "effects.json").write_text(json.dumps(effects, indent=1) + "\n")
-        out.print(f"each method against {baseline}, seed by seed: {folder / 'effects.md'}")
+        message = f"each method against {baseline}, seed by seed: {folder / 'effects.md'}"
+    else:
+        message = f"no other method shares a cell with {baseline}: no effects.md"
+    out.print(message, highlight=False)
     out.print(f"rows, table and curves in {folder}", highlight=False)
 
 

@@ -88,25 +88,31 @@ def _cell(value: tuple[float, float, float] | None) -> str:
     return f"{mean:.3f} [{low:.3f}, {high:.3f}]"
 
 
-Pairing = tuple[str, str, str, int, int]  # task, teacher, scheme, questions, seed
+Paired = tuple[str, str, str, int, int]  # task, teacher, scheme, questions, seed
 
 
 def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[dict[str, Any]]:
     """Each method against `baseline` on the same task, teacher, scheme, budget and seed (cells
-    of one seed share their held-out segments, starting model and random streams, so the
+    of one seed start from the same reward model and share their random streams, so the
     seed-by-seed difference has less noise than two separate means): the mean difference in
     accuracy and Spearman with a 95% t-interval over seeds, each side's wrong inferred
-    labels, and a verdict."""
-    measures: dict[tuple[str, Pairing], dict[str, Any]] = {}
+    labels, and a verdict. Two rows of one method and cell (merged folders, two pools of a
+    task) cannot be paired: they raise ValueError."""
+    measures: dict[tuple[str, Paired], dict[str, Any]] = {}
     for row in rows:
-        key = (row["task"], row["teacher"], row["scheme"], row["questions"], row["seed"])
-        measures[(method(row), key)] = row
-    groups: dict[tuple[str, str, str, str, int], list[tuple[dict[str, Any], dict[str, Any]]]]
-    groups = defaultdict(list)
-    for (name, key), row in measures.items():
-        base = measures.get((baseline, key))
+        cell = (row["task"], row["teacher"], row["scheme"], row["questions"], row["seed"])
+        key = (method(row), cell)
+        if key in measures:
+            raise ValueError(
+                f"two rows of {key[0]} for task {cell[0]}, teacher {cell[1]}, scheme {cell[2]}, "
+                f"{cell[3]} questions, seed {cell[4]}: a folder holds one row per cell and budget"
+            )
+        measures[key] = row
+    groups: dict[Group, list[tuple[dict[str, Any], dict[str, Any]]]] = defaultdict(list)
+    for (name, cell), row in measures.items():
+        base = measures.get((baseline, cell))
         if name != baseline and base is not None:
-            task, teacher, scheme, questions, _ = key
+            task, teacher, scheme, questions, _ = cell
             groups[(task, teacher, name, scheme, questions)].append((row, base))
     order = [s.value for s in SchemeName]
     effects = []
@@ -143,9 +149,16 @@ def _verdict(difference: tuple[float, float, float], seeds: int) -> str:
     return "helps" if low > 0 else "hurts" if high < 0 else "no clear difference"
 
 
+EFFECTS_CAVEAT = (
+    "Each verdict is one 95% interval: of many rows, about 1 in 20 reads helps or hurts by "
+    "chance alone, and a seed's budgets come from one continuing run, so budgets that agree "
+    "are not independent evidence. Trust a pattern across schemes and teachers over one row."
+)
+
+
 def format_effects(effects: list[dict[str, Any]]) -> str:
     lines = [
-        "| task | teacher | scheme | method | questions | seeds | accuracy difference "
+        "| task | teacher | method | scheme | questions | seeds | accuracy difference "
         "[95% CI] | Spearman difference [95% CI] | wrong inferred (baseline's) | verdict |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -154,16 +167,17 @@ def format_effects(effects: list[dict[str, Any]]) -> str:
         wrong = "-" if e["inferred_wrong"] is None else f"{e['inferred_wrong']:.3f}"
         wrong += "" if base is None else f" ({base:.3f})"
         lines.append(
-            f"| {e['task']} | {e['teacher']} | {e['scheme']} | {e['method']} vs {e['baseline']} "
+            f"| {e['task']} | {e['teacher']} | {e['method']} vs {e['baseline']} | {e['scheme']} "
             f"| {e['questions']} | {e['seeds']} | {_signed(e['accuracy_difference'])} "
             f"| {_signed(e['spearman_difference'])} | {wrong} | {e['verdict']} |"
         )
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n\n" + EFFECTS_CAVEAT + "\n"
 
 
 def _signed(value: tuple[float, float, float]) -> str:
-    mean, low, high = value
-    return f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]"
+    """A signed difference and its interval (none for one seed); never "-0.000"."""
+    mean, low, high = (0.0 if abs(v) < 5e-4 else v for v in value)
+    return f"{mean:+.3f}" + ("" if low == high else f" [{low:+.3f}, {high:+.3f}]")
 
 
 def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
