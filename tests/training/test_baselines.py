@@ -28,6 +28,7 @@ def test_a_true_reward_run_asks_nothing_skips_pretraining_and_learns_the_true_re
     assert {r["phase"] for r in rows if r["kind"] == "train"} == {"true-reward"}
     summary = trainer.run_dir.read_summary()
     assert summary["reward"] == "true" and summary["asked"] == 0
+    assert summary["scheme"] is None and summary["teacher"] is None  # it asked no one
     # the learned column was never filled: the agent trained on the true one
     assert float(trainer.replay.reward.abs().sum()) == 0.0
     assert float(trainer.replay.true_reward.abs().sum()) > 0.0

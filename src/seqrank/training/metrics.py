@@ -103,10 +103,11 @@ def live(c: Counters) -> dict[str, Any]:
 
 def summary(config: TrainConfig, c: Counters, rows: list[dict[str, Any]]) -> dict[str, Any]:
     evals = [r for r in rows if r["kind"] == "eval"]
+    asks = config.reward.asks  # a baseline asks nothing: no scheme or teacher to name
     return {
         "task": config.task,
-        "scheme": config.scheme,
-        "teacher": config.teacher,
+        "scheme": config.scheme if asks else None,
+        "teacher": config.teacher if asks else None,
         "backbone": config.backbone,
         "reward": config.reward,
         "steps": c.step,
