@@ -4,7 +4,6 @@ saved trajectory pools without RL (pool, run, score)."""
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from pathlib import Path
@@ -15,6 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from seqrank.choices import RewardLearner
 from seqrank.cli.options import int_between, names, positive, seed_number
+from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
 
@@ -61,7 +61,7 @@ def add_parser(commands: Any) -> None:
     _add_pool(actions)
     _add_grid(actions)
     _add_score(actions)
-    _add_report(actions)
+    add_report(actions)
 
 
 def _add_pool(actions: Any) -> None:
@@ -184,20 +184,6 @@ def _add_score(actions: Any) -> None:
     score.set_defaults(handler=run_score)
 
 
-def _add_report(actions: Any) -> None:
-    report = actions.add_parser(
-        "report",
-        help="a grid folder's table, curves and paired effects, from its rows (nothing runs)",
-    )
-    report.add_argument("folder", type=Path, help="a grid's folder (`run --out`: its rows.jsonl)")
-    report.add_argument(
-        "--baseline",
-        default="plain",
-        help="the method every other is compared with, seed by seed, in effects.md (plain)",
-    )
-    report.set_defaults(handler=run_report)
-
-
 def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_file
     from seqrank.rewardbench.pool import pool_from_run, save_pool
@@ -310,61 +296,10 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     try:
-        _write_report(rows, args.out, "plain", out)
+        write_report(rows, args.out, "plain", out)
     except ValueError as problem:  # two rows of one cell (a folder merged by hand)
         raise UsageError(f"{args.out}: {problem}") from None
     return 0
-
-
-def run_report(args: argparse.Namespace, out: Console, err: Console) -> int:
-    from seqrank.rewardbench.summary import method
-    from seqrank.rows import read_rows
-
-    rows = read_rows(args.folder / "rows.jsonl")
-    if not rows:
-        raise UsageError(f"no rows in {args.folder}: give a folder that `reward-bench run` wrote")
-    methods = sorted({method(row) for row in rows})
-    if args.baseline not in methods:
-        raise UsageError(
-            f"--baseline {args.baseline!r} has no rows in {args.folder}; "
-            f"accepted: {', '.join(methods)}"
-        )
-    try:
-        _write_report(rows, args.folder, args.baseline, out)
-    except ValueError as problem:  # two rows of one cell: they cannot be paired
-        raise UsageError(f"{args.folder}: {problem}") from None
-    return 0
-
-
-def _write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: Console) -> None:
-    """table.md, summary.json and the curves; with other methods beside the baseline, also
-    effects.md and effects.json (each against the baseline, seed by seed)."""
-    from seqrank.rewardbench.summary import (
-        format_effects,
-        format_table,
-        paired_effects,
-        plot_task,
-        summarise,
-    )
-
-    summary = summarise(rows)
-    table = format_table(summary)
-    (folder / "table.md").write_text(table)
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    for task in sorted({e["task"] for e in summary}):
-        plot_task(summary, task, folder / f"curves_{task.replace(':', '-')}.png")
-    out.print(table, highlight=False, markup=False)
-    effects = paired_effects(rows, baseline)
-    for name in ("effects.md", "effects.json"):  # none stale from rows of another time
-        (folder / name).unlink(missing_ok=True)
-    if effects:
-        (folder / "effects.md").write_text(format_effects(effects))
-        (folder / "effects.json").write_text(json.dumps(effects, indent=1) + "\n")
-        message = f"each method against {baseline}, seed by seed: {folder / 'effects.md'}"
-    else:
-        message = f"no other method shares a cell with {baseline}: no effects.md"
-    out.print(message, highlight=False)
-    out.print(f"rows, table and curves in {folder}", highlight=False)
 
 
 def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
