@@ -93,9 +93,9 @@ class TrainConfig:
     # that would imply `recheck_gain` new pairs or more (twice from `recheck_twice_gain`),
     # and infers only along paths of at most `path_unchecked` unrepeated answers
     augment: Augment = Augment.FULL
-    recheck_gain: int = 1
-    recheck_twice_gain: int = 20
-    path_unchecked: int = 1
+    recheck_gain: int = Recheck.gain
+    recheck_twice_gain: int = Recheck.twice_gain
+    path_unchecked: int = Recheck.path_unchecked
     selection: Selection = Selection.UNIFORM
     oversample: int = 10
     episodes_kept: int = 100

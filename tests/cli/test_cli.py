@@ -111,7 +111,7 @@ def test_simulate_takes_the_re_check_settings_of_checked(tmp_path, capsys):
         return json.loads(capsys.readouterr().out)
 
     default, loose = ranked_oracle(), ranked_oracle("--recheck-gain", "3", "--path-unchecked", "2")
-    assert default["parameters"]["recheck"] == {"gain": 1, "twice_gain": 20, "path_unchecked": 1}
+    assert default["parameters"]["recheck"] == {"gain": 1, "twice_gain": 5, "path_unchecked": 1}
     assert loose["parameters"]["recheck"]["gain"] == 3
     # fewer repeats and longer trusted paths infer more per question from the same answers
     ppq = [r["results"][0]["pairs_per_question"] for r in (default, loose)]
@@ -133,7 +133,7 @@ def test_simulate_takes_the_re_check_settings_of_checked(tmp_path, capsys):
         ),
         (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
         (["simulate", "--sessions", "1"], "1 is out of range; accepted: 2 to 1000000"),
-        (["simulate", "--recheck-gain", "0"], "recheck settings gain 0, twice_gain 20"),
+        (["simulate", "--recheck-gain", "0"], "recheck settings gain 0, twice_gain 5"),
         (["fly"], "invalid choice: 'fly'"),
     ],
 )
