@@ -230,6 +230,24 @@ def test_a_learners_own_settings_split_only_that_learners_runs(tmp_path):
     ]
 
 
+def test_re_check_settings_split_only_checked_runs(tmp_path):
+    """Runs of the paper's closure never read the re-check settings, whose default changed
+    (twice from 20 pairs, then 5): old and new `full` runs stay one method; checked runs
+    with different settings are reported apart."""
+    fake_run(tmp_path / "full_0", "walker_walk", "root", 0, [1.0, 2.0], recheck_twice_gain=20)
+    fake_run(tmp_path / "full_1", "walker_walk", "root", 1, [1.0, 4.0], recheck_twice_gain=5)
+    for seed, twice in enumerate([20, 5]):
+        settings = dict(augment="checked", recheck_twice_gain=twice)
+        fake_run(tmp_path / f"checked_{seed}", "walker_walk", "root", seed, [1.0, 3.0], **settings)
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["methods"] == [
+        "root",
+        "root+checked/recheck_twice_gain=20",
+        "root+checked/recheck_twice_gain=5",
+    ]
+
+
 def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
     fake_run(tmp_path / "root_plain", "walker_walk", "root", 0, [1.0, 300.0])
     fake_run(tmp_path / "root_checked", "walker_walk", "root", 0, [1.0, 350.0], augment="checked")

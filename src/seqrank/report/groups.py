@@ -65,6 +65,8 @@ FEEDBACK_ONLY = {
 # settings only one reward learner reads: runs of another learner may hold any value (or,
 # made before the setting existed, none)
 LEARNER_PREFIXES = {"surf": "surf_", "rime": "rime_"}
+# settings only `augment checked` reads (their defaults changed once: twice_gain 20 -> 5)
+CHECKED_ONLY = {"recheck_gain", "recheck_twice_gain", "path_unchecked"}
 
 
 def split_by_settings(
@@ -101,6 +103,8 @@ def _differing(members: list[RunResult]) -> list[str]:
         for name, prefix in LEARNER_PREFIXES.items()
         if key.startswith(prefix) and name != learner
     }
+    if members[0].settings.get("augment", "full") != "checked":  # one per cell
+        ignored |= CHECKED_ONLY
     keys = {key for run in members for key in run.settings} - ignored
     return sorted(k for k in keys if len({repr(run.settings.get(k)) for run in members}) > 1)
 
