@@ -264,6 +264,8 @@ def test_each_method_is_compared_with_plain_seed_by_seed():
     assert paired_effects(effect_rows([-0.02, -0.03, -0.04]))[0]["verdict"] == "hurts"
     assert paired_effects(effect_rows([-0.02, 0.0, 0.02]))[0]["verdict"] == "no clear difference"
     assert paired_effects(effect_rows([0.5]))[0]["verdict"] == "one seed"
+    # the same model on every seed (checked on pairwise, which infers nothing): said plainly
+    assert paired_effects(effect_rows([0.0, 0.0]))[0]["verdict"] == "identical"
     # checked augmentation is its own method; rows of the baseline alone compare nothing
     checked = [{**r, "augment": "checked"} for r in effect_rows([0.0, 0.1], learner="plain")]
     names = {e["method"] for e in paired_effects(effect_rows([0.1, 0.2]) + checked[1::2])}

@@ -119,7 +119,9 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
     for (task, teacher, name, scheme, questions), pairs in sorted(
         groups.items(), key=lambda item: (*item[0][:3], order.index(item[0][3]), item[0][4])
     ):
-        accuracy = interval([row["accuracy"] - base["accuracy"] for row, base in pairs])
+        differences = [row["accuracy"] - base["accuracy"] for row, base in pairs]
+        spearman = [row["spearman"] - base["spearman"] for row, base in pairs]
+        accuracy = interval(differences)
         effects.append(
             {
                 "task": task,
@@ -130,12 +132,12 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
                 "questions": questions,
                 "seeds": len(pairs),
                 "accuracy_difference": accuracy,
-                "spearman_difference": interval(
-                    [row["spearman"] - base["spearman"] for row, base in pairs]
-                ),
+                "spearman_difference": interval(spearman),
                 "inferred_wrong": _mean_of([row["inferred_wrong"] for row, _ in pairs]),
                 "baseline_inferred_wrong": _mean_of([base["inferred_wrong"] for _, base in pairs]),
-                "verdict": _verdict(accuracy, len(pairs)),
+                "verdict": "identical"
+                if not any(differences + spearman)
+                else _verdict(accuracy, len(pairs)),
             }
         )
     return effects
