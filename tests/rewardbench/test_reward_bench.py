@@ -266,6 +266,10 @@ def test_each_method_is_compared_with_plain_seed_by_seed():
     assert paired_effects(effect_rows([0.5]))[0]["verdict"] == "one seed"
     # the same model on every seed (checked on pairwise, which infers nothing): said plainly
     assert paired_effects(effect_rows([0.0, 0.0]))[0]["verdict"] == "identical"
+    # the matrix at the top of effects.md: a table per teacher and budget, scheme by method
+    matrix = format_effects(paired_effects(effect_rows([0.02, 0.03, 0.04])))
+    assert "## t, mistake, 10 questions\n\n| scheme | rime |" in matrix
+    assert "| root | +0.030 [+0.005, +0.055] **helps** |" in matrix
     # checked augmentation is its own method; rows of the baseline alone compare nothing
     checked = [{**r, "augment": "checked"} for r in effect_rows([0.0, 0.1], learner="plain")]
     names = {e["method"] for e in paired_effects(effect_rows([0.1, 0.2]) + checked[1::2])}

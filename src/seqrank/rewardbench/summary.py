@@ -159,6 +159,48 @@ EFFECTS_CAVEAT = (
 
 
 def format_effects(effects: list[dict[str, Any]]) -> str:
+    """A matrix per task, teacher and budget (schemes by methods), then every row."""
+    return _effects_matrices(effects) + "\n## Every comparison\n\n" + _effects_rows(effects)
+
+
+_MARKS = {"helps": " **helps**", "hurts": " **hurts**"}
+
+
+def _effects_matrices(effects: list[dict[str, Any]]) -> str:
+    """Accuracy differences at a glance: one table per (task, teacher, budget), a row per
+    scheme and a column per method, the verdict marked (unmarked: no clear difference)."""
+    methods = list(dict.fromkeys(e["method"] for e in effects))
+    schemes = [s.value for s in SchemeName if any(e["scheme"] == s.value for e in effects)]
+    cells = {
+        (e["task"], e["teacher"], e["questions"], e["scheme"], e["method"]): e for e in effects
+    }
+    blocks = sorted({(e["task"], e["teacher"], e["questions"]) for e in effects})
+    baseline = effects[0]["baseline"]
+    out = [
+        f"# Held-out accuracy against {baseline}, paired by seed: mean difference [95% CI]",
+        "\n**helps** / **hurts**: the interval excludes 0; unmarked: no clear difference; "
+        "identical: the same measures on every seed; -: not run. Caveat at the end.",
+    ]
+    for task, teacher, questions in blocks:
+        out += [f"\n## {task}, {teacher}, {questions} questions\n"]
+        out += ["| scheme | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
+        for scheme in schemes:
+            row = []
+            for name in methods:
+                e = cells.get((task, teacher, questions, scheme, name))
+                if e is None or e["verdict"] == "identical":
+                    row.append("-" if e is None else "identical")
+                    continue
+                row.append(
+                    _signed(e["accuracy_difference"])
+                    + _MARKS.get(e["verdict"], "")
+                    + ("" if e["seeds"] > 1 else " (one seed)")
+                )
+            out.append(f"| {scheme} | " + " | ".join(row) + " |")
+    return "\n".join(out) + "\n"
+
+
+def _effects_rows(effects: list[dict[str, Any]]) -> str:
     lines = [
         "| task | teacher | method | scheme | questions | seeds | accuracy difference "
         "[95% CI] | Spearman difference [95% CI] | wrong inferred (baseline's) | verdict |",
