@@ -71,6 +71,37 @@ def test_surf_loss_counts_only_confident_unlabelled_pairs_with_the_predicted_lab
     )
 
 
+def test_surf_sends_only_confident_pairs_through_the_network_with_the_same_loss():
+    """The unlabelled loss with only the confident pairs differentiated equals, in value and
+    gradient, the loss of the whole batch through the network (the unconfident pairs'
+    terms are exact zeros), for an ensemble whose members trust different pairs."""
+    torch.manual_seed(0)
+    model = RewardModel(3, 4, 16, 2, 1e-3, CPU)
+    segments = np.random.default_rng(0).normal(size=(200, 10, 4)).astype(np.float32)
+    settings = SurfSettings(threshold=0.55, unlabelled_batch=4, crop=3)
+    learner = SurfLearner(settings, torch.Generator().manual_seed(5))
+    learner.use_unlabelled(segments, segments[..., 0].sum(1))
+    loss = learner._unlabelled_loss(model, torch.Size([3, 8]))
+    grads = torch.autograd.grad(loss.sum(), list(model.net.parameters()))
+    # the same draws (pairs, then crops), every pair through the network
+    generator = torch.Generator().manual_seed(5)
+    pick = torch.randint(0, 100, (3, 32), generator=generator)
+    pairs = torch.as_tensor(segments)
+    rewards_a, rewards_b = (
+        model.step_rewards(pairs[2 * pick]),
+        model.step_rewards(pairs[2 * pick + 1]),
+    )
+    labels, used = pseudo_labels((rewards_a.sum(-1) - rewards_b.sum(-1)).detach(), 0.55)
+    assert 0 < used.sum(1).min() < used.sum(1).max() < 32  # members trust different pairs
+    mask_a, mask_b = crop_masks((3, 32), 10, 3, generator)
+    logits = (rewards_a * mask_a).sum(-1) - (rewards_b * mask_b).sum(-1)
+    whole = (F.binary_cross_entropy_with_logits(logits, labels, reduction="none") * used).mean(1)
+    assert torch.allclose(loss, whole, rtol=1e-5, atol=1e-7)
+    whole_grads = torch.autograd.grad(whole.sum(), list(model.net.parameters()))
+    for ours, reference in zip(grads, whole_grads, strict=True):
+        assert torch.allclose(ours, reference, rtol=1e-4, atol=1e-6)
+
+
 def test_surf_with_a_threshold_nothing_reaches_adds_no_loss():
     learner = SurfLearner(SurfSettings(threshold=1.0, crop=0), torch.Generator())
     learner.use_unlabelled(_pair(3.0), np.array([1.0, 0.0]))

@@ -118,6 +118,9 @@ class SurfLearner(PlainLearner):
         return loss.sum(), logits  # (the stopping rule's accuracy on the crops, as theirs)
 
     def _unlabelled_loss(self, model: RewardModel, shape: torch.Size) -> torch.Tensor:
+        """The mean over the whole unlabelled batch of the confident pairs' losses. Only the
+        confident pairs (often a tenth to a third) go through the network with gradients:
+        the others would add exact zeros at three times the cost of labelling them."""
         assert self.unlabelled is not None and self.truth is not None
         members, batch = shape
         count = batch * self.settings.unlabelled_batch
@@ -127,18 +130,29 @@ class SurfLearner(PlainLearner):
             self.unlabelled, self.truth = self.unlabelled.to(device), self.truth.to(device)
         pick = pick.to(device)
         a, b = self.unlabelled[2 * pick], self.unlabelled[2 * pick + 1]
-        rewards_a, rewards_b = model.step_rewards(a), model.step_rewards(b)
         with torch.no_grad():  # pseudo-labels from the whole segments, as the teacher sees
-            labels, used = pseudo_labels(
-                rewards_a.sum(-1) - rewards_b.sum(-1), self.settings.threshold
-            )
+            margin = model.step_rewards(a).sum(-1) - model.step_rewards(b).sum(-1)
+            labels, used = pseudo_labels(margin, self.settings.threshold)
             wrong = used & ((labels > 0.5) != self.truth[pick])
             drawn = torch.tensor(float(used.numel()), dtype=torch.float64, device=device)
             self._count(torch.stack([drawn, used.sum().double(), wrong.sum().double()]))
         mask_a, mask_b = self._masks(pick.shape, a.shape[2], device)
-        logits = (rewards_a * mask_a).sum(-1) - (rewards_b * mask_b).sum(-1)
-        per_pair = F.binary_cross_entropy_with_logits(logits, labels, reduction="none")
-        return (per_pair * used).mean(1)
+        kept = int(used.sum(1).max())
+        if kept == 0:
+            return torch.zeros(members, device=device)
+        # each member's confident pairs first (padded to the most any member has)
+        slots = torch.argsort((~used).to(torch.int8), dim=1, stable=True)[:, :kept]
+        real = used.gather(1, slots)
+
+        def take(values: torch.Tensor) -> torch.Tensor:
+            index = slots.reshape(*slots.shape, *(1,) * (values.dim() - 2))
+            return values.gather(1, index.expand(-1, -1, *values.shape[2:]))
+
+        logits = (model.step_rewards(take(a)) * take(mask_a)).sum(-1) - (
+            model.step_rewards(take(b)) * take(mask_b)
+        ).sum(-1)
+        per_pair = F.binary_cross_entropy_with_logits(logits, take(labels), reduction="none")
+        return (per_pair * real).sum(1) / count
 
     def _cropped_logits(self, model: RewardModel, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         mask_a, mask_b = self._masks(a.shape[:2], a.shape[2], model.device)
