@@ -135,17 +135,18 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
                 "spearman_difference": interval(spearman),
                 "inferred_wrong": _mean_of([row["inferred_wrong"] for row, _ in pairs]),
                 "baseline_inferred_wrong": _mean_of([base["inferred_wrong"] for _, base in pairs]),
-                "verdict": "identical"
-                if not any(differences + spearman)
-                else _verdict(accuracy, len(pairs)),
+                "verdict": _verdict(accuracy, len(pairs), same=not any(differences + spearman)),
             }
         )
     return effects
 
 
-def _verdict(difference: tuple[float, float, float], seeds: int) -> str:
-    """On held-out accuracy: an interval that excludes 0 says which way, with 2 seeds or more."""
+def _verdict(difference: tuple[float, float, float], seeds: int, same: bool) -> str:
+    """On held-out accuracy: an interval that excludes 0 says which way, with 2 seeds or more;
+    `same`: every seed gave both methods the same measures."""
     _, low, high = difference
+    if same:
+        return "identical"
     if seeds < 2:
         return "one seed"
     return "helps" if low > 0 else "hurts" if high < 0 else "no clear difference"
@@ -185,19 +186,18 @@ def _effects_matrices(effects: list[dict[str, Any]]) -> str:
         out += [f"\n## {task}, {teacher}, {questions} questions\n"]
         out += ["| scheme | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
         for scheme in schemes:
-            row = []
-            for name in methods:
-                e = cells.get((task, teacher, questions, scheme, name))
-                if e is None or e["verdict"] == "identical":
-                    row.append("-" if e is None else "identical")
-                    continue
-                row.append(
-                    _signed(e["accuracy_difference"])
-                    + _MARKS.get(e["verdict"], "")
-                    + ("" if e["seeds"] > 1 else " (one seed)")
-                )
+            row = [_matrix_cell(cells.get((task, teacher, questions, scheme, m))) for m in methods]
             out.append(f"| {scheme} | " + " | ".join(row) + " |")
     return "\n".join(out) + "\n"
+
+
+def _matrix_cell(effect: dict[str, Any] | None) -> str:
+    if effect is None:
+        return "-"
+    if effect["verdict"] == "identical":
+        return "identical"
+    seeds = "" if effect["seeds"] > 1 else " (one seed)"
+    return _signed(effect["accuracy_difference"]) + _MARKS.get(effect["verdict"], "") + seeds
 
 
 def _effects_rows(effects: list[dict[str, Any]]) -> str:
