@@ -6,7 +6,9 @@ A segment's per-step rewards are `q * (1 + slope * (t/H - 1/2)) + noise`, clippe
 teacher has low-return pairs to skip), slope ~ N(0, 1) and noise ~ N(0, 0.02). The
 within-segment trend is what makes a myopic teacher err.
 With `augment checked` the scheme re-checks answers and the closure limits unrepeated
-answers on a path, by default with `seqrank train`'s settings (`Recheck()`).
+answers on a path, by default with `seqrank train`'s settings (`Recheck()`); a cell's
+sessions are one teacher's, in order, so once the teacher has contradicted themselves the
+next sessions ask big answers twice more, as in a training run.
 The teacher's margin is the mean segment return of the pool (the stand-in for "mean
 return of recent episodes scaled to segment length"). Truth for error rates is the
 undiscounted segment return.
@@ -24,7 +26,7 @@ from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.schemes import get_scheme, uniform_choice
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
-from seqrank.types import Answer
+from seqrank.types import Answer, AnsweredQuestion
 
 SEGMENT_LENGTH = 50
 AUGMENTS = ("full", "checked")
@@ -73,6 +75,35 @@ def run_session(
     horizon: int = SEGMENT_LENGTH,
     recheck: Recheck | None = None,
 ) -> AugmentationStats:
+    return _session(scheme, teacher, questions, rng, horizon, recheck)[0]
+
+
+def run_sessions(
+    scheme: str,
+    teacher: ScriptedTeacher,
+    questions: int,
+    sessions: int,
+    rng: np.random.Generator,
+    recheck: Recheck | None = None,
+) -> list[AugmentationStats]:
+    """`sessions` sessions of one teacher: what a re-check learns (the teacher
+    contradicted themselves) carries over to the next sessions."""
+    stats = []
+    for _ in range(sessions):
+        session_stats, answers = _session(scheme, teacher, questions, rng, SEGMENT_LENGTH, recheck)
+        stats.append(session_stats)
+        recheck = recheck and recheck.after(answers)
+    return stats
+
+
+def _session(
+    scheme: str,
+    teacher: ScriptedTeacher,
+    questions: int,
+    rng: np.random.Generator,
+    horizon: int,
+    recheck: Recheck | None,
+) -> tuple[AugmentationStats, tuple[AnsweredQuestion, ...]]:
     rewards = synthetic_segments(2 * questions, horizon, rng)
     returns = rewards.sum(axis=1)
     session_teacher = teacher.with_margin(float(returns.mean()))
@@ -82,7 +113,7 @@ def run_session(
 
     record = get_scheme(scheme)(len(rewards), questions, ask, rng, uniform_choice, recheck)
     path_unchecked = None if recheck is None else recheck.path_unchecked
-    return augment(record.answers, returns.tolist(), path_unchecked).stats
+    return augment(record.answers, returns.tolist(), path_unchecked).stats, record.answers
 
 
 def simulate_cell(
@@ -97,7 +128,7 @@ def simulate_cell(
     """`checking` sets `augment checked`'s re-checks and trusted paths (default Recheck())."""
     teacher = ScriptedTeacher(teacher_preset(teacher_name))
     recheck = None if augment_name == "full" else checking or Recheck()
-    stats = [run_session(scheme, teacher, questions, rng, recheck=recheck) for _ in range(sessions)]
+    stats = run_sessions(scheme, teacher, questions, sessions, rng, recheck)
     ppq = np.array([s.pairs_per_question for s in stats])
     max_deg = np.array([s.max_degree for s in stats], dtype=np.float64)
     inferred = sum(s.inferred for s in stats)

@@ -142,3 +142,9 @@ def test_a_checked_run_asks_big_moves_again_and_stores_each_answer(tmp_path):
     pairs = [frozenset((first, second)) for _, _, first, second, _, _ in asked]
     assert len(set(pairs)) < len(pairs)  # some answer was asked again
     assert sum(not inferred for inferred in trainer.labels.inferred) == 20  # each answer kept
+    # the next session learns from the stored answers whether the teacher contradicted
+    # themselves (then big answers are asked twice more)
+    erred = trainer.labels.teacher_contradicted()
+    assert trainer.sessions._request(trainer.counters, False).recheck.contradicted is erred
+    trainer.labels.asked += [(9, "root", 0, 1, "first", True), (9, "root", 0, 1, "second", True)]
+    assert trainer.sessions._request(trainer.counters, False).recheck.contradicted

@@ -117,7 +117,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "schemes": args.schemes,
             "teachers": args.teachers,
             "augment": args.augment,
-            "recheck": asdict(checking),
+            "recheck": {k: v for k, v in asdict(checking).items() if k != "contradicted"},
             "seed": args.seed,
         },
         "results": [cell.as_dict() for cell in results],

@@ -5,14 +5,17 @@ that the closure chains (root's challenger wrongly beating the root places it ab
 whole tree) turns into many wrong labels. Two parts work together:
 
 - in the session, an answer whose transitive closure would add at least `gain` new pairs
-  is asked again (once, or twice from `twice_gain` pairs on); it stands only if every
-  repeat agrees, otherwise the scheme treats the question as skipped and the closure sees
-  a pair whose answers disagree (no edge, or an unconfirmed one);
+  is asked again; it stands only if every repeat agrees, otherwise the scheme treats the
+  question as skipped and the closure sees a pair whose answers disagree (no edge, or an
+  unconfirmed one). Once the teacher has contradicted themselves (a repeat that disagreed,
+  in this session or an earlier one of the run), an answer that would imply `twice_gain`
+  pairs or more is asked twice more: a teacher who has never disagreed with themselves
+  is asked once, which is what a perfect teacher costs;
 - in the closure, a pair is inferred only along a path with at most `path_unchecked`
   edges that rest on one unrepeated answer (`augment(..., path_unchecked=...)`).
 
 Each repeat spends a question of the session's budget, which is what it trades: with the
-oracle teacher root keeps about 1.64 pairs per question instead of 1.84, while under B-Pref's
+oracle teacher root keeps about 1.70 pairs per question instead of 1.84, while under B-Pref's
 `mistake` teacher (10% flipped answers) inferred labels go from about 3 times to fewer than
 the teacher's own errors (`seqrank simulate --augment full,checked`). Repeats assume a
 teacher's errors on the same pair are independent, as in B-Pref's scripted teachers; a
@@ -21,8 +24,8 @@ person who misjudges a pair may misjudge it again.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, replace
 
 from seqrank.feedback.closure import augment
 from seqrank.types import Answer, AnsweredQuestion
@@ -31,13 +34,18 @@ from seqrank.types import Answer, AnsweredQuestion
 @dataclass(frozen=True)
 class Recheck:
     gain: int = 1  # re-ask an answer that would imply at least this many new pairs
-    # ... twice from this many on. Why 5 (not 20, the first choice): a wrong win that one
-    # repeat confirms (two slips) puts the challenger above the whole tree. With sessions
-    # of 25 questions, as in the reward benchmark, 20 left root's inferred labels 14% wrong
-    # under `mistake` (asked: 9%); 5 brings them to 6%. It costs root's oracle pairs per
-    # question in 50-question sessions 1.70 -> 1.64 (results/noise-aware/README.md).
+    # ... twice from this many on, once the teacher has contradicted themselves. Why 5 (not
+    # 20, the first choice): a wrong win that one repeat confirms (two slips) puts the
+    # challenger above the whole tree; with sessions of 25 questions, as in the reward
+    # benchmark, 20 left root's inferred labels 14% wrong under `mistake` (asked: 9%), 5
+    # brings them to 6%. Why only once contradicted: asked of every teacher, the second
+    # repeat cost root's oracle pairs per question 1.70 -> 1.64 in 50-question sessions
+    # (results/noise-aware/README.md).
     twice_gain: int = 5
     path_unchecked: int = 1  # unconfirmed edges allowed on an inference path
+    # whether the teacher contradicted themselves in an earlier session of the run (the
+    # run's loop sets it: `after`, or `contradicts_itself` over its stored questions)
+    contradicted: bool = False
 
     def __post_init__(self) -> None:
         if self.gain < 1 or self.twice_gain < self.gain or self.path_unchecked < 0:
@@ -53,7 +61,36 @@ class Recheck:
         if answers[-1].answer not in (Answer.FIRST, Answer.SECOND):
             return 0
         gain = augment(answers).stats.inferred - augment(answers[:-1]).stats.inferred
-        return 0 if gain < self.gain else 1 if gain < self.twice_gain else 2
+        if gain < self.gain:
+            return 0
+        if gain < self.twice_gain:
+            return 1
+        return 2 if self.contradicted or contradicts_itself(_asked(answers)) else 1
+
+    def after(self, answers: Sequence[AnsweredQuestion]) -> Recheck:
+        """These settings for the teacher's next session, given this session's answers."""
+        if self.contradicted or not contradicts_itself(_asked(answers)):
+            return self
+        return replace(self, contradicted=True)
+
+
+def contradicts_itself(asked: Iterable[tuple[int, int, Answer]]) -> bool:
+    """Whether two answers to the same pair of segments (first, second, answer), in either
+    order, disagree; skips are not answers."""
+    seen: dict[tuple[int, int], Answer] = {}
+    for first, second, answer in asked:
+        if answer is Answer.SKIP:
+            continue
+        key, answer = (
+            ((first, second), answer) if first < second else ((second, first), answer.flipped())
+        )
+        if seen.setdefault(key, answer) is not answer:
+            return True
+    return False
+
+
+def _asked(answers: Iterable[AnsweredQuestion]) -> Iterable[tuple[int, int, Answer]]:
+    return ((a.first, a.second, a.answer) for a in answers)
 
 
 def confirmed_answer(

@@ -8,8 +8,10 @@ import numpy as np
 import torch
 
 from seqrank.episodes import Segments
+from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
 from seqrank.feedback.schemes import SessionRecord
+from seqrank.types import Answer
 
 
 class LabelStore:
@@ -63,6 +65,11 @@ class LabelStore:
             first, second = offset[question.first], offset[question.second]
             row = (session, record.scheme, first, second, asked.answer.value)
             self.asked.append((*row, question.first_is_defender))
+
+    def teacher_contradicted(self) -> bool:
+        """Whether two stored answers to the same pair disagree (a re-check that did not
+        confirm): `augment checked` then asks big answers twice more."""
+        return contradicts_itself((f, s, Answer(a)) for _, _, f, s, a, _ in self.asked)
 
     def tensors(
         self, device: torch.device, last: int | None = None

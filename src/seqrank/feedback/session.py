@@ -9,7 +9,7 @@ storage are the same for all of them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -119,6 +119,7 @@ def prepare_session(
     rng: np.random.Generator,
     informative: bool,
     margin: float,
+    contradicted: bool = False,
 ) -> SessionRequest:
     """Sample the candidate pool and build the chooser for a session of `questions`.
 
@@ -130,6 +131,9 @@ def prepare_session(
     last N episodes, those of the current policy. QPA kept 10 on DMControl
     (`max_reward_buffer_size=10` in `run_QPA.sh` of github.com/huxiao09/QPA; 30 or 60 on
     Meta-World) where PEBBLE keeps 100; 0 (the default) keeps PEBBLE's behaviour.
+
+    `contradicted`: the teacher contradicted themselves in an earlier session
+    (`LabelStore.teacher_contradicted`); `augment checked` then asks big answers twice more.
     """
     needed = segments_needed(plan.scheme, questions)
     use_model = informative and plan.selection != "uniform"
@@ -139,6 +143,9 @@ def prepare_session(
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
     window = episodes.window(last) if last else None
+    recheck = plan.recheck
+    if recheck is not None and contradicted:
+        recheck = replace(recheck, contradicted=True)
     return SessionRequest(
         plan.scheme,
         questions,
@@ -147,7 +154,7 @@ def prepare_session(
         chooser,
         rng,
         margin,
-        recheck=plan.recheck,
+        recheck=recheck,
         episodes=window,
     )
 

@@ -150,7 +150,10 @@ def run_cell(
     for budget in settings.budgets:
         while tally.asked < budget and source.has_session(session):
             questions = min(settings.session_questions, budget - tally.asked)
-            request = prepare_session(plan, questions, episodes, model, session, rng, False, margin)
+            contradicted = labels.teacher_contradicted()
+            request = prepare_session(
+                plan, questions, episodes, model, session, rng, False, margin, contradicted
+            )
             segments, record = source.ask_session(request)
             stored = store_session(segments, record, labels, session, request.path_unchecked)
             tally.add(stored.stats)

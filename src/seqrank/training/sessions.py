@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from seqrank.episodes import EpisodeStore, Segments
+from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import FeedbackSource, SessionPlan, SessionRequest, prepare_session
 from seqrank.reward.model import RewardModel
@@ -42,8 +43,10 @@ class FeedbackSessions:
         reward_model: RewardModel,
         rng: np.random.Generator,
         wait_for_feedback: bool,
+        labels: LabelStore | None = None,  # the run's: has the teacher contradicted themselves?
     ):
         self.schedule, self.plan, self.source = schedule, plan, source
+        self.labels = labels
         self.episodes, self.reward_model, self.rng = episodes, reward_model, rng
         self.wait_for_feedback = wait_for_feedback
         # called with the session's index before its segments are cut (fine-tuning's parts)
@@ -100,4 +103,5 @@ class FeedbackSessions:
             self.rng,
             informative=not first,
             margin=margin,
+            contradicted=self.labels is not None and self.labels.teacher_contradicted(),
         )

@@ -139,6 +139,7 @@ class Trainer:
             self.reward_model,
             self.rng,
             wait_for_feedback,
+            self.labels,
         )
         study_parts = tuple(p for p in config.parts.split(",") if p)
         if study_parts:  # before each session: episodes of the study part's skill levels
