@@ -90,8 +90,9 @@ class TrainConfig:
     feedback_frequency: int = 20_000
     segment_length: int = 50
     # noise-aware augmentation (seqrank.feedback.checking): `checked` asks again an answer
-    # that would imply `recheck_gain` new pairs or more (twice from `recheck_twice_gain`),
-    # and infers only along paths of at most `path_unchecked` unrepeated answers
+    # that would imply `recheck_gain` new pairs or more (twice from `recheck_twice_gain`
+    # once the teacher has contradicted themselves), and infers only along paths of at most
+    # `path_unchecked` unrepeated answers
     augment: Augment = Augment.FULL
     recheck_gain: int = Recheck.gain
     recheck_twice_gain: int = Recheck.twice_gain

@@ -10,6 +10,7 @@ import pytest
 
 from seqrank.feedback.label_file import parse_lines
 from seqrank.labelling import CLIP_SIZE
+from seqrank.labelling.app import _recheck
 from support.pages import Page
 
 TASK = "dmc:cartpole_swingup"
@@ -199,5 +200,22 @@ def test_a_checked_session_shows_a_winning_challenger_again(tmp_path):
         page.done.wait(10)
         assert shown[1] == shown[2] and shown[0] != shown[1] and shown[2] != shown[3]
         assert len(page.hub.db.answered_questions()) == 4
+        assert not _recheck(page.hub.db, 1).contradicted  # the repeat agreed
+    finally:
+        page.close()
+
+
+def test_a_repeat_the_person_contradicts_makes_the_next_sessions_ask_twice_more(tmp_path):
+    page = Page(tmp_path / "labels", "root", 4, augment="checked")
+    try:
+        for choice_role in ("defender", "challenger", "defender", "defender"):
+            question = page.question()
+            side = "left" if question["left"]["role"] == choice_role else "right"
+            assert page.answer(side)[1].status_code == 200
+        page.done.wait(10)
+        asked = page.hub.db.answered_questions()
+        assert asked[1][0].first == asked[2][0].first and asked[1][1].answer != asked[2][1].answer
+        assert _recheck(page.hub.db, 1).contradicted  # the next session knows
+        assert not _recheck(page.hub.db, 0).contradicted  # a resumed session 0 does not
     finally:
         page.close()

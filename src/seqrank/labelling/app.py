@@ -26,7 +26,7 @@ from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task, make_env
 from seqrank.envs.recorder import EpisodeRecorder
 from seqrank.episodes import EpisodeStore
-from seqrank.feedback.checking import Recheck
+from seqrank.feedback.checking import Recheck, contradicts_itself
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -36,6 +36,7 @@ from seqrank.labelling.clips import ClipRenderer
 from seqrank.labelling.db import LabelDB, from_blob
 from seqrank.labelling.human import Hub, HumanSource, PageSettings, Stopped
 from seqrank.labelling.jsonl import export_file
+from seqrank.types import Answer
 
 Say = Callable[[str], None]
 LABELS_FILE = "labels.jsonl"
@@ -201,6 +202,15 @@ def _saved_policy(run_dir: Path, env: Any) -> Any:
     return load_policy(run_dir, env)
 
 
+def _recheck(db: LabelDB, session: int) -> Recheck:
+    """`checked`'s settings for `session`: big answers are asked twice more once the
+    labeller has contradicted themselves in an earlier session (only earlier ones, so that
+    a session resumed after a crash asks what it asked before)."""
+    asked = db.answered_questions("offline")
+    earlier = ((q.first, q.second, Answer(a.answer)) for q, a in asked if q.session < session)
+    return Recheck(contradicted=contradicts_itself(earlier))
+
+
 def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) -> int:
     """Ask every session not yet complete; returns the number of answers in the database."""
     db = hub.db
@@ -231,7 +241,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
             make_chooser("uniform", None),
             rng,
             0.0,
-            recheck=Recheck() if options.augment == "checked" else None,
+            recheck=_recheck(db, session) if options.augment == "checked" else None,
         )
         say(f"session {session + 1}/{options.sessions}: {options.questions} questions")
         source.ask_session(request)
