@@ -40,7 +40,8 @@ def run_scheme(
     (pairwise, sequential, root or ranked) asks them. `ask(first, second)` gets two
     segment ids and returns an `Answer`; in schemes with a defender, `first` is it.
     With a `Recheck` (noise-aware augmentation) answers that would imply many pairs are
-    asked again within the budget."""
+    asked again within the budget; for the same teacher's next session pass
+    `recheck.after(record.answers)`, which remembers whether they contradicted themselves."""
     rng = np.random.default_rng(seed)
     return get_scheme(scheme)(pool_size, budget, ask, rng, uniform_choice, recheck)
 

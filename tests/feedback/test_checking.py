@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import seqrank.simulate
 from seqrank.feedback.checking import Recheck, contradicts_itself
 from seqrank.feedback.closure import augment
 from seqrank.feedback.labels import LabelStore
@@ -171,3 +172,22 @@ def test_in_short_sessions_checked_root_infers_no_more_wrong_labels_than_are_ask
     # often wrong as asked ones or more (1 000 sessions: 11.3% against 9.9%)
     wrong, asked = simulated("root", "mistake", Recheck(), sessions=300, questions=25)[1:]
     assert wrong < asked
+
+
+def test_simulated_sessions_carry_a_contradiction_to_the_next_ones(monkeypatch):
+    # the second session's answers disagree on a pair: the third and fourth are asked
+    # knowing it, the first two not
+    contradiction = tuple(
+        AnsweredQuestion(Question(k, 0, 1, True), answer)
+        for k, answer in enumerate((Answer.FIRST, Answer.SECOND))
+    )
+    told: list[bool] = []
+
+    def one_session(scheme, teacher, questions, generator, horizon, recheck):
+        told.append(recheck.contradicted)
+        return None, contradiction if len(told) == 2 else ()
+
+    monkeypatch.setattr(seqrank.simulate, "_session", one_session)
+    teacher = ScriptedTeacher(teacher_preset("oracle"))
+    run_sessions("root", teacher, 5, 4, rng(), Recheck())
+    assert told == [False, False, True, True]

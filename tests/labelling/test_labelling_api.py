@@ -206,16 +206,24 @@ def test_a_checked_session_shows_a_winning_challenger_again(tmp_path):
 
 
 def test_a_repeat_the_person_contradicts_makes_the_next_sessions_ask_twice_more(tmp_path):
-    page = Page(tmp_path / "labels", "root", 4, augment="checked")
+    # root, checked, two sessions of 8. Session 0: the second challenger wins (it would
+    # imply a pair), its repeat is answered the other way: a contradiction. Session 1: the
+    # root beats 5 challengers, then the 6th wins, which would imply 5 pairs: shown three
+    # times (a person who never contradicted themselves would see it twice)
+    page = Page(tmp_path / "labels", "root", 8, augment="checked", sessions=2)
     try:
-        for choice_role in ("defender", "challenger", "defender", "defender"):
+        winners = {0: (1,), 1: (5, 6, 7)}  # per session, which questions the challenger wins
+        shown = []
+        for k in range(16):
             question = page.question()
-            side = "left" if question["left"]["role"] == choice_role else "right"
+            role = "challenger" if k % 8 in winners[k // 8] else "defender"
+            side = "left" if question["left"]["role"] == role else "right"
             assert page.answer(side)[1].status_code == 200
+            shown.append(frozenset((question["left"]["segment"], question["right"]["segment"])))
         page.done.wait(10)
-        asked = page.hub.db.answered_questions()
-        assert asked[1][0].first == asked[2][0].first and asked[1][1].answer != asked[2][1].answer
-        assert _recheck(page.hub.db, 1).contradicted  # the next session knows
-        assert not _recheck(page.hub.db, 0).contradicted  # a resumed session 0 does not
+        assert shown[1] == shown[2] and len(set(shown[:8])) == 7  # session 0's repeat
+        assert shown[13] == shown[14] == shown[15]  # session 1: asked twice more
+        assert _recheck(page.hub.db, 1).contradicted
+        assert not _recheck(page.hub.db, 0).contradicted  # a resumed session 0 does not know
     finally:
         page.close()

@@ -56,6 +56,7 @@ class Page:
         task: str = TASK,
         segment_length: int = 50,
         augment: str = "full",
+        sessions: int = 1,
     ):
         self.directory = directory
         options = ServerOptions(token=token, countdown_s=3.0, annotator="tester")
@@ -63,7 +64,9 @@ class Page:
         self.client = page_client(self.hub)
         if token:
             self.client.headers["X-Seqrank-Token"] = token
-        offline = OfflineOptions(task, scheme, questions, 1, segment_length, 1, 0, None, augment)
+        offline = OfflineOptions(
+            task, scheme, questions, sessions, segment_length, 1, 0, None, augment
+        )
         self.done = threading.Event()
         self.error: list[BaseException] = []
 

@@ -39,7 +39,7 @@ MEANINGS = {
     "augment": "full (the paper's transitive closure) or checked (noise-aware: re-checks "
     "and trusted paths)",
     "recheck_gain": "checked: ask an answer again when it would imply this many new pairs",
-    "recheck_twice_gain": "checked: ... twice from this many on, once the teacher contradicted themselves",
+    "recheck_twice_gain": "checked: ... twice from this many on, once contradicted",
     "path_unchecked": "checked: unrepeated answers allowed on an inferred pair's path",
     "selection": "which segments are asked about: uniform, disagreement, entropy",
     "oversample": "disagreement and entropy: candidates per question",

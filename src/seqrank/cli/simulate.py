@@ -77,7 +77,7 @@ def _add_checking(sim: argparse.ArgumentParser) -> None:
     checking = Recheck()
     for flag, default, meaning in (
         ("--recheck-gain", checking.gain, "re-ask an answer that would imply this many new pairs"),
-        ("--recheck-twice-gain", checking.twice_gain, "... twice from this many on, once the teacher contradicted themselves"),
+        ("--recheck-twice-gain", checking.twice_gain, "... twice from N on, once contradicted"),
         ("--path-unchecked", checking.path_unchecked, "unrepeated answers on an inferred path"),
     ):
         sim.add_argument(

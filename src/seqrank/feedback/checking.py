@@ -15,7 +15,7 @@ whole tree) turns into many wrong labels. Two parts work together:
   edges that rest on one unrepeated answer (`augment(..., path_unchecked=...)`).
 
 Each repeat spends a question of the session's budget, which is what it trades: with the
-oracle teacher root keeps about 1.70 pairs per question instead of 1.84, while under B-Pref's
+oracle teacher root keeps about 1.74 pairs per question instead of 1.84, while under B-Pref's
 `mistake` teacher (10% flipped answers) inferred labels go from about 3 times to fewer than
 the teacher's own errors (`seqrank simulate --augment full,checked`). Repeats assume a
 teacher's errors on the same pair are independent, as in B-Pref's scripted teachers; a
@@ -39,7 +39,7 @@ class Recheck:
     # challenger above the whole tree; with sessions of 25 questions, as in the reward
     # benchmark, 20 left root's inferred labels 14% wrong under `mistake` (asked: 9%), 5
     # brings them to 6%. Why only once contradicted: asked of every teacher, the second
-    # repeat cost root's oracle pairs per question 1.70 -> 1.64 in 50-question sessions
+    # repeat cost root's oracle pairs per question 1.74 -> 1.64 in 50-question sessions
     # (results/noise-aware/README.md).
     twice_gain: int = 5
     path_unchecked: int = 1  # unconfirmed edges allowed on an inference path
@@ -76,7 +76,8 @@ class Recheck:
 
 def contradicts_itself(asked: Iterable[tuple[int, int, Answer]]) -> bool:
     """Whether two answers to the same pair of segments (first, second, answer), in either
-    order, disagree; skips are not answers."""
+    order, disagree. Skips are not answers: a repeat the teacher skips (or lets time out)
+    drops the answer it was to confirm but is not taken for a contradiction."""
     seen: dict[tuple[int, int], Answer] = {}
     for first, second, answer in asked:
         if answer is Answer.SKIP:

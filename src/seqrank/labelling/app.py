@@ -204,8 +204,9 @@ def _saved_policy(run_dir: Path, env: Any) -> Any:
 
 def _recheck(db: LabelDB, session: int) -> Recheck:
     """`checked`'s settings for `session`: big answers are asked twice more once the
-    labeller has contradicted themselves in an earlier session (only earlier ones, so that
-    a session resumed after a crash asks what it asked before)."""
+    labeller has contradicted themselves, earlier in the session (the scheme sees that) or
+    in an earlier session (read here from earlier sessions only, so that a session resumed
+    after a crash asks what it asked before)."""
     asked = db.answered_questions("offline")
     earlier = ((q.first, q.second, Answer(a.answer)) for q, a in asked if q.session < session)
     return Recheck(contradicted=contradicts_itself(earlier))
