@@ -23,6 +23,7 @@ from seqrank.rewardbench.summary import (
     format_table,
     summarise,
 )
+from seqrank.types import Answer
 
 SMALL = BenchSettings(
     budgets=(10, 30),
@@ -364,3 +365,41 @@ def test_a_pool_can_take_the_first_part_of_a_longer_run(tmp_path, capsys):
     assert code == 2
     assert "--until-step takes part of a run given with --from-run" in capsys.readouterr().err
     assert part.meta["until_step"] == 2500 and whole.meta["until_step"] is None
+
+
+class _SlipsOnRepeats:
+    """Answers by the segments' true returns, except that every repeat disagrees; keeps
+    what each session was told about the teacher."""
+
+    def __init__(self) -> None:
+        self.told: list[bool] = []  # per session: the teacher contradicted themselves before
+        self.slipped: list[bool] = []  # per session: a repeat was asked (and disagreed)
+
+    def has_session(self, session: int) -> bool:
+        return True
+
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
+        pass
+
+    def ask_session(self, request):
+        self.told.append(request.recheck.contradicted)
+        returns = request.segments.rewards.sum(axis=1)
+        asked: set[tuple[int, int]] = set()
+
+        def ask(first: int, second: int) -> Answer:
+            truth = Answer.FIRST if returns[first] > returns[second] else Answer.SECOND
+            repeat = (first, second) in asked
+            asked.add((first, second))
+            return truth.flipped() if repeat else truth
+
+        record = request.run_scheme(ask)
+        self.slipped.append(len(set(asked)) < len(record.answers))
+        return request.segments, record
+
+
+def test_a_checked_cell_tells_each_session_whether_the_teacher_contradicted_themselves():
+    source = _SlipsOnRepeats()
+    run_cell(synthetic_pool(), Cell("root", "oracle", 0, augment="checked"), SMALL, source)
+    # once a session's repeat disagreed, every later session is told
+    assert any(source.slipped[:-1])
+    assert source.told == [any(source.slipped[:k]) for k in range(len(source.told))]
