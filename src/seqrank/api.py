@@ -10,7 +10,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -50,12 +50,14 @@ def close_preferences(
     answers: Iterable[AnsweredQuestion],
     true_returns: list[float] | None = None,
     path_unchecked: int | None = None,
+    vouched: Collection[tuple[int, int]] = frozenset(),
 ) -> Augmentation:
     """The answered pairs plus every pair they imply by transitivity (segments caught in a
     preference cycle imply nothing; with `path_unchecked`, only along paths with at most
-    that many unrepeated answers). With `true_returns` (per segment id) the stats count
+    that many unconfirmed answers; `vouched` (winner, loser) answers count as confirmed,
+    as `Recheck.vouched` gives them). With `true_returns` (per segment id) the stats count
     the labels those returns contradict."""
-    return augment(answers, true_returns, path_unchecked)
+    return augment(answers, true_returns, path_unchecked, vouched)
 
 
 def make_config(task: str = "walker_walk", scale: str = "small", **settings: Any) -> TrainConfig:

@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 import seqrank.simulate
+from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck, contradicts_itself
 from seqrank.feedback.closure import augment
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SCHEMES, get_scheme, in_order_choice, root
+from seqrank.feedback.session import SessionRequest
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
 from seqrank.simulate import run_sessions
 from seqrank.types import Answer, AnsweredQuestion, Question
@@ -109,6 +111,55 @@ def test_a_contradiction_earlier_in_the_session_makes_big_wins_asked_twice_more(
     assert pairs[:3] == [(0, 1), (1, 2), (1, 2)] and pairs[7:] == [(1, 7)] * 3 + [(7, 8)]
     steady = asked_pairs(root(12, 11, truth, rng(), in_order_choice, Recheck()))
     assert steady[6:9] == [(1, 7), (1, 7), (7, 8)]  # no contradiction: once more
+
+
+def test_where_the_fitted_model_agrees_a_teacher_never_contradicted_is_not_asked_again():
+    values = list(range(10))  # in-order draws: every challenger wins, as in the first test
+    ask = perfect_ask(values)
+    plain = asked_pairs(root(10, 7, ask, rng(), in_order_choice, Recheck()))
+    agrees = Recheck(model_returns=tuple(float(v) for v in values))
+    assert asked_pairs(root(10, 7, ask, rng(), in_order_choice, agrees)) == [
+        (k, k + 1) for k in range(7)
+    ]
+    # the model ranks 3 below 2 (and ties 5 with 4): those two wins are asked again
+    doubted = Recheck(model_returns=(0.0, 1.0, 2.0, 1.5, 4.0, 4.0, 6.0, 7.0, 8.0, 9.0))
+    pairs = asked_pairs(root(10, 9, ask, rng(), in_order_choice, doubted))
+    assert pairs == [(0, 1), (1, 2), (2, 3), (2, 3), (3, 4), (4, 5), (4, 5), (5, 6), (6, 7)]
+    # a model that disagrees everywhere, or a teacher who has contradicted themselves:
+    # asked again as without a model
+    opposed = Recheck(model_returns=tuple(-float(v) for v in values))
+    assert asked_pairs(root(10, 7, ask, rng(), in_order_choice, opposed)) == plain
+    erred = Recheck(contradicted=True, model_returns=agrees.model_returns)
+    assert asked_pairs(root(10, 7, ask, rng(), in_order_choice, erred)) == plain
+
+
+def test_only_the_answers_the_model_agrees_with_are_vouched_for_the_closure():
+    def answered(*triples: tuple[int, int, Answer]) -> list[AnsweredQuestion]:
+        return [AnsweredQuestion(Question(k, a, b, True), x) for k, (a, b, x) in enumerate(triples)]
+
+    model = (0.0, 1.0, 2.0, 3.0)  # the model ranks 3 > 2 > 1 > 0
+    answers = answered((0, 1, Answer.SECOND), (2, 1, Answer.SECOND), (3, 2, Answer.FIRST))
+    assert Recheck(model_returns=model).vouched(answers) == {(1, 0), (3, 2)}
+    assert Recheck().vouched(answers) == frozenset()  # no model yet
+    assert Recheck(contradicted=True, model_returns=model).vouched(answers) == frozenset()
+    # a contradiction in the session withdraws the trust for the whole session
+    slipped = answers + answered((1, 0, Answer.SECOND))
+    assert Recheck(model_returns=model).vouched(slipped) == frozenset()
+
+
+def test_the_models_opinions_stay_with_the_pool_they_were_given_for():
+    def pool(seed: int) -> Segments:
+        features = np.random.default_rng(seed).random((4, 3, 2))
+        return Segments(features, features.sum(axis=2), [None] * 4, [None] * 4)
+
+    own = pool(0)
+    judged = Recheck(model_returns=(0.0, 1.0, 2.0, 3.0))
+    request = SessionRequest("root", 3, 1, own, in_order_choice, rng(), 0.0, recheck=judged)
+    assert request.recheck_over(own) == judged
+    copied = Segments(own.features.copy(), own.rewards, own.states, own.contexts)
+    assert request.recheck_over(copied) == judged
+    # a stored pool of other segments (a resumed labelling session): no model opinions
+    assert request.recheck_over(pool(1)) == Recheck()
 
 
 def test_a_teacher_who_contradicted_themselves_stays_so_for_the_next_sessions():

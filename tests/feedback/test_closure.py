@@ -71,6 +71,19 @@ def test_noise_aware_closure_counts_unconfirmed_edges_on_a_path():
     assert inferred_of(augment(answers, path_unchecked=0)) == set()
 
 
+def test_a_vouched_answer_counts_as_confirmed_and_only_in_its_direction():
+    # as above; the reward model agreed with 1 > 2, so a path may use it as confirmed
+    answers = answered((0, 1, F), (0, 1, F), (1, 2, F), (2, 3, F))
+    vouched = augment(answers, path_unchecked=1, vouched={(1, 2)})
+    assert inferred_of(vouched) == {(0, 2), (0, 3), (1, 3)}
+    assert inferred_of(augment(answers, path_unchecked=0, vouched={(1, 2)})) == {(0, 2)}
+    # an edge vouched the other way round (the model disagreed) is not confirmed
+    assert inferred_of(augment(answers, path_unchecked=0, vouched={(2, 1)})) == set()
+    # a pair whose answers disagree stays without an edge, vouched or not
+    split = answered((0, 1, F), (0, 1, F), (1, 2, F), (1, 2, S))
+    assert inferred_of(augment(split, path_unchecked=5, vouched={(1, 2)})) == set()
+
+
 def test_noise_aware_closure_never_infers_through_a_contradicted_pair():
     # 1 vs 2 answered both ways: no edge, so 0 > 1 and 2 > 3 (both confirmed) imply nothing
     # across it; with a third answer 1 > 2 the edge stands but is unconfirmed

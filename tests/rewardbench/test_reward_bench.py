@@ -374,6 +374,7 @@ class _SlipsOnRepeats:
     def __init__(self) -> None:
         self.told: list[bool] = []  # per session: the teacher contradicted themselves before
         self.slipped: list[bool] = []  # per session: a repeat was asked (and disagreed)
+        self.model: list[int] = []  # per session: how many segments the model judged
 
     def has_session(self, session: int) -> bool:
         return True
@@ -383,6 +384,8 @@ class _SlipsOnRepeats:
 
     def ask_session(self, request):
         self.told.append(request.recheck.contradicted)
+        judged = request.recheck.model_returns
+        self.model.append(0 if judged is None else len(judged))
         returns = request.segments.rewards.sum(axis=1)
         asked: set[tuple[int, int]] = set()
 
@@ -399,7 +402,10 @@ class _SlipsOnRepeats:
 
 def test_a_checked_cell_tells_each_session_whether_the_teacher_contradicted_themselves():
     source = _SlipsOnRepeats()
-    run_cell(synthetic_pool(), Cell("root", "oracle", 0, augment="checked"), SMALL, source)
-    # once a session's repeat disagreed, every later session is told
-    assert any(source.slipped[:-1])
+    run_cell(synthetic_pool(), Cell("root", "oracle", 1, augment="checked"), SMALL, source)
+    # once a session's repeat disagreed, every later session is told (the first session,
+    # with no model to agree, asks a win again: seed 1 draws one that implies pairs)
+    assert source.slipped[0]
     assert source.told == [any(source.slipped[:k]) for k in range(len(source.told))]
+    # the model gives its opinion on every segment from its first fit on (10 questions)
+    assert source.model[0] == 0 and all(n == source.model[1] > 0 for n in source.model[1:])

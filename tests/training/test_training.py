@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -147,4 +148,10 @@ def test_a_checked_run_asks_big_moves_again_and_stores_each_answer(tmp_path):
     erred = trainer.labels.teacher_contradicted()
     assert trainer.sessions._request(trainer.counters, False).recheck.contradicted is erred
     trainer.labels.asked += [(9, "root", 0, 1, "first", True), (9, "root", 0, 1, "second", True)]
-    assert trainer.sessions._request(trainer.counters, False).recheck.contradicted
+    later = trainer.sessions._request(trainer.counters, False)
+    assert later.recheck.contradicted
+    # after the first session the fitted model judges each segment (its second opinion)
+    features = later.segments.features
+    expected = trainer.reward_model.member_returns(features).mean(axis=0)
+    assert np.allclose(later.recheck.model_returns, expected)
+    assert trainer.sessions._request(trainer.counters, True).recheck.model_returns is None

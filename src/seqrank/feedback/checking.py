@@ -11,8 +11,13 @@ whole tree) turns into many wrong labels. Two parts work together:
   in this session or an earlier one of the run), an answer that would imply `twice_gain`
   pairs or more is asked twice more: a teacher who has never disagreed with themselves
   is asked once, which is what a perfect teacher costs;
+- once a reward model has been fit, it is a second opinion for a teacher who has never
+  contradicted themselves: an answer the model agrees with (ranks the pair the same way)
+  is not asked again and counts as confirmed in the closure; one it disagrees with is
+  asked again as above. A teacher who has contradicted themselves is asked again
+  whatever the model says;
 - in the closure, a pair is inferred only along a path with at most `path_unchecked`
-  edges that rest on one unrepeated answer (`augment(..., path_unchecked=...)`).
+  edges that rest on one unconfirmed answer (`augment(..., path_unchecked=...)`).
 
 Each repeat spends a question of the session's budget, which is what it trades: with the
 oracle teacher root keeps about 1.74 pairs per question instead of 1.84, while under B-Pref's
@@ -46,6 +51,9 @@ class Recheck:
     # whether the teacher contradicted themselves in an earlier session of the run (the
     # run's loop sets it: `after`, or `contradicts_itself` over its stored questions)
     contradicted: bool = False
+    # the reward model's predicted return of each of the session's segments, once it has
+    # been fit (`prepare_session` sets it; None: no model yet, or none at hand)
+    model_returns: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.gain < 1 or self.twice_gain < self.gain or self.path_unchecked < 0:
@@ -63,9 +71,34 @@ class Recheck:
         gain = augment(answers).stats.inferred - augment(answers[:-1]).stats.inferred
         if gain < self.gain:
             return 0
+        contradicted = self.contradicted or contradicts_itself(_asked(answers))
+        if not contradicted and self.model_agrees(answers[-1]):
+            return 0
         if gain < self.twice_gain:
             return 1
-        return 2 if self.contradicted or contradicts_itself(_asked(answers)) else 1
+        return 2 if contradicted else 1
+
+    def model_agrees(self, answer: AnsweredQuestion) -> bool:
+        """Whether the fitted reward model ranks the pair as the teacher did (a tie is
+        not agreement); False while there is no model."""
+        if self.model_returns is None:
+            return False
+        first, second = self.model_returns[answer.first], self.model_returns[answer.second]
+        return first > second if answer.answer is Answer.FIRST else second > first
+
+    def vouched(self, answers: Sequence[AnsweredQuestion]) -> frozenset[tuple[int, int]]:
+        """Winner-loser edges the closure may take as confirmed without a repeat: the
+        answers the fitted model agrees with, of a teacher who has not contradicted
+        themselves (in this session or before): the trust that spared them the repeat."""
+        if self.model_returns is None or self.contradicted:
+            return frozenset()
+        if contradicts_itself(_asked(answers)):
+            return frozenset()
+        return frozenset(
+            (a.first, a.second) if a.answer is Answer.FIRST else (a.second, a.first)
+            for a in answers
+            if a.answer in (Answer.FIRST, Answer.SECOND) and self.model_agrees(a)
+        )
 
     def after(self, answers: Sequence[AnsweredQuestion]) -> Recheck:
         """These settings for the teacher's next session, given this session's answers."""

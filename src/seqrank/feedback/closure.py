@@ -17,7 +17,8 @@ One pure function serves every scheme (and a whole run, when chains span session
 With `path_unchecked=k` (noise-aware augmentation, `augment checked`) a pair is inferred
 only along a path with at most k unconfirmed edges; None (the paper's closure) trusts every
 edge. One wrong answer then implies wrong pairs only through confirmed edges, which a noisy
-teacher rarely gets wrong twice.
+teacher rarely gets wrong twice. An answer the fitted reward model agreed with, of a teacher
+who has never contradicted themselves, is confirmed too (`vouched`; it was not asked again).
 
 Alongside the pairs come the per-session statistics of SPEC section 3.
 """
@@ -25,7 +26,7 @@ Alongside the pairs come the per-session statistics of SPEC section 3.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from seqrank.types import LABEL_FIRST, Answer, AnsweredQuestion, LabelledPair
@@ -81,9 +82,11 @@ def augment(
     answers: Iterable[AnsweredQuestion],
     true_returns: TrueReturns | None = None,
     path_unchecked: int | None = None,
+    vouched: Collection[tuple[int, int]] = frozenset(),
 ) -> Augmentation:
     """Asked pairs with their labels plus every pair implied by transitivity (along paths
-    of at most `path_unchecked` unconfirmed edges, when given)."""
+    of at most `path_unchecked` unconfirmed edges, when given). `vouched` winner-loser
+    edges count as confirmed on one answer (the reward model agreed with it)."""
     answers = list(answers)
     asked_pairs = [
         LabelledPair(a.first, a.second, label, inferred=False)
@@ -91,7 +94,7 @@ def augment(
         if (label := a.answer.label) is not None
     ]
     votes = _votes(answers)
-    confirmed, single = _majority_edges(votes)
+    confirmed, single = _majority_edges(votes, vouched)
     components = _strongly_connected(confirmed + single)
     cyclic = [c for c in components if len(c) > 1]
     cyclic_nodes = {node for c in cyclic for node in c}
@@ -143,9 +146,12 @@ def _votes(answers: Sequence[AnsweredQuestion]) -> dict[tuple[int, int], list[fl
 Edges = list[tuple[int, int]]
 
 
-def _majority_edges(votes: Mapping[tuple[int, int], list[float]]) -> tuple[Edges, Edges]:
+def _majority_edges(
+    votes: Mapping[tuple[int, int], list[float]], vouched: Collection[tuple[int, int]]
+) -> tuple[Edges, Edges]:
     """(confirmed, unconfirmed) winner-loser edges: one per pair whose mean label is not
-    1/2; confirmed when two or more answers agree and none disagrees."""
+    1/2; confirmed when two or more answers agree and none disagrees, or on one vouched
+    answer."""
     confirmed: Edges = []
     single: Edges = []
     for (a, b), labels in votes.items():
@@ -154,7 +160,8 @@ def _majority_edges(votes: Mapping[tuple[int, int], list[float]]) -> tuple[Edges
             continue
         edge = (a, b) if mean > 0.5 else (b, a)
         unanimous = len(labels) > 1 and len(set(labels)) == 1
-        (confirmed if unanimous else single).append(edge)
+        sure = unanimous or (len(labels) == 1 and edge in vouched)
+        (confirmed if sure else single).append(edge)
     return confirmed, single
 
 

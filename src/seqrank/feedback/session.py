@@ -44,9 +44,14 @@ class SessionRequest:
         pool = len(self.segments.rewards)
         return scheme(pool, self.questions, ask, self.rng, self.chooser, self.recheck)
 
-    @property
-    def path_unchecked(self) -> int | None:
-        return None if self.recheck is None else self.recheck.path_unchecked
+    def recheck_over(self, pool: Segments) -> Recheck | None:
+        """The re-check settings for questions over `pool`: the model's opinions index
+        this request's own pool, so they are left out for another (a stored one)."""
+        if self.recheck is None or self.recheck.model_returns is None:
+            return self.recheck
+        if pool is self.segments or np.array_equal(pool.features, self.segments.features):
+            return self.recheck
+        return replace(self.recheck, model_returns=None)
 
     # with `query_episodes`: the numbers of the first and last episode the pool is cut from
     episodes: tuple[int, int] | None = None
@@ -120,6 +125,7 @@ def prepare_session(
     informative: bool,
     margin: float,
     contradicted: bool = False,
+    model_fit: bool = False,
 ) -> SessionRequest:
     """Sample the candidate pool and build the chooser for a session of `questions`.
 
@@ -134,6 +140,8 @@ def prepare_session(
 
     `contradicted`: the teacher contradicted themselves in an earlier session
     (`LabelStore.teacher_contradicted`); `augment checked` then asks big answers twice more.
+    `model_fit`: the reward model has been fit to labels; `augment checked` then does not
+    ask again a teacher who has never contradicted themselves where the model agrees.
     """
     needed = segments_needed(plan.scheme, questions)
     use_model = informative and plan.selection != "uniform"
@@ -146,6 +154,9 @@ def prepare_session(
     recheck = plan.recheck
     if recheck is not None and contradicted:
         recheck = replace(recheck, contradicted=True)
+    if recheck is not None and model_fit:
+        predicted = reward_model.member_returns(sampled.features).mean(axis=0)
+        recheck = replace(recheck, model_returns=tuple(predicted.tolist()))
     return SessionRequest(
         plan.scheme,
         questions,
@@ -163,12 +174,16 @@ def store_session(
     segments: Segments,
     record: SessionRecord,
     labels: LabelStore,
-    session: int,
-    path_unchecked: int | None = None,
+    request: SessionRequest,
 ) -> SessionOutcome:
-    """Augment the answers by transitivity (along paths of at most `path_unchecked`
-    unrepeated answers, when given) and store asked and inferred pairs."""
+    """Augment the answers by transitivity (with `augment checked`, along paths of few
+    unconfirmed answers) and store asked and inferred pairs."""
     true_returns = segments.rewards.sum(axis=1)
-    augmentation = augment(record.answers, true_returns.tolist(), path_unchecked)
-    labels.add_session(segments, true_returns, record.segments, augmentation, session, record)
+    recheck = request.recheck_over(segments)
+    path_unchecked = None if recheck is None else recheck.path_unchecked
+    vouched = frozenset() if recheck is None else recheck.vouched(record.answers)
+    augmentation = augment(record.answers, true_returns.tolist(), path_unchecked, vouched)
+    labels.add_session(
+        segments, true_returns, record.segments, augmentation, request.session, record
+    )
     return SessionOutcome(augmentation.stats, len(record.segments))

@@ -103,7 +103,7 @@ class HumanSource:
             page_session.ask,
             np.random.default_rng(page_session.seed),
             page_session.choose,
-            request.recheck,
+            request.recheck_over(pool),
         )
         return pool, record
 

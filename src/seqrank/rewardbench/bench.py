@@ -146,16 +146,17 @@ def run_cell(
     learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
     learner = make_learner(cell.learner, learner_stream)
     labels, tally, session, rows = LabelStore(), _Tally(), 0, []
+    fitted = False  # whether the model has been fit yet (checked's second opinion)
     started = time.perf_counter()
     for budget in settings.budgets:
         while tally.asked < budget and source.has_session(session):
             questions = min(settings.session_questions, budget - tally.asked)
             contradicted = labels.teacher_contradicted()
             request = prepare_session(
-                plan, questions, episodes, model, session, rng, False, margin, contradicted
+                plan, questions, episodes, model, session, rng, False, margin, contradicted, fitted
             )
             segments, record = source.ask_session(request)
-            stored = store_session(segments, record, labels, session, request.path_unchecked)
+            stored = store_session(segments, record, labels, request)
             tally.add(stored.stats)
             session += 1
         if not len(labels):
@@ -172,6 +173,7 @@ def run_cell(
             sync_every_step=False,
             learner=learner,
         )
+        fitted = True
         rows.append(_row(pool, cell, tally, len(labels), heldout, model, fit, started))
         if tally.asked < budget:
             break  # a replayed file ran out

@@ -134,9 +134,7 @@ def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
     config, c = t.config, t.counters
     first = answered.request.session == 0
     request = answered.request
-    outcome = store_session(
-        answered.segments, answered.record, t.labels, request.session, request.path_unchecked
-    )
+    outcome = store_session(answered.segments, answered.record, t.labels, request)
     metrics.count_session(c, outcome.stats)
     result = t.reward.train(config.seed, c.sessions, c.asked)
     t.reward.relabel()

@@ -104,4 +104,5 @@ class FeedbackSessions:
             informative=not first,
             margin=margin,
             contradicted=self.labels is not None and self.labels.teacher_contradicted(),
+            model_fit=not first,
         )
