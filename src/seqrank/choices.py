@@ -60,7 +60,7 @@ class RewardSignal(StrEnum):
 
 class Augment(StrEnum):
     FULL = "full"  # the paper's closure: every answer is trusted and chained
-    CHECKED = "checked"  # noise-aware: re-check big moves, chain few unrepeated answers
+    CHECKED = "checked"  # noise-aware: re-check big moves, chain few unconfirmed answers
 
 
 class RewardLearner(StrEnum):

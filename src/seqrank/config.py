@@ -91,8 +91,9 @@ class TrainConfig:
     segment_length: int = 50
     # noise-aware augmentation (seqrank.feedback.checking): `checked` asks again an answer
     # that would imply `recheck_gain` new pairs or more (twice from `recheck_twice_gain`
-    # once the teacher has contradicted themselves), and infers only along paths of at most
-    # `path_unchecked` unrepeated answers
+    # once the teacher has contradicted themselves; not at all where the fitted reward model
+    # agrees with a teacher who never has), and infers only along paths of at most
+    # `path_unchecked` unconfirmed answers
     augment: Augment = Augment.FULL
     recheck_gain: int = Recheck.gain
     recheck_twice_gain: int = Recheck.twice_gain

@@ -8,11 +8,11 @@ import pytest
 
 import seqrank.simulate
 from seqrank.episodes import Segments
-from seqrank.feedback.checking import Recheck, contradicts_itself
+from seqrank.feedback.checking import Recheck, contradicts_itself, standing_vouched
 from seqrank.feedback.closure import augment
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import SCHEMES, get_scheme, in_order_choice, root
-from seqrank.feedback.session import SessionRequest
+from seqrank.feedback.schemes import SCHEMES, SessionRecord, get_scheme, in_order_choice, root
+from seqrank.feedback.session import SessionRequest, store_session
 from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
 from seqrank.simulate import run_sessions
 from seqrank.types import Answer, AnsweredQuestion, Question
@@ -133,33 +133,62 @@ def test_where_the_fitted_model_agrees_a_teacher_never_contradicted_is_not_asked
     assert asked_pairs(root(10, 7, ask, rng(), in_order_choice, erred)) == plain
 
 
-def test_only_the_answers_the_model_agrees_with_are_vouched_for_the_closure():
-    def answered(*triples: tuple[int, int, Answer]) -> list[AnsweredQuestion]:
-        return [AnsweredQuestion(Question(k, a, b, True), x) for k, (a, b, x) in enumerate(triples)]
-
-    model = (0.0, 1.0, 2.0, 3.0)  # the model ranks 3 > 2 > 1 > 0
-    answers = answered((0, 1, Answer.SECOND), (2, 1, Answer.SECOND), (3, 2, Answer.FIRST))
-    assert Recheck(model_returns=model).vouched(answers) == {(1, 0), (3, 2)}
-    assert Recheck().vouched(answers) == frozenset()  # no model yet
-    assert Recheck(contradicted=True, model_returns=model).vouched(answers) == frozenset()
-    # a contradiction in the session withdraws the trust for the whole session
-    slipped = answers + answered((1, 0, Answer.SECOND))
-    assert Recheck(model_returns=model).vouched(slipped) == frozenset()
+def test_the_answers_the_model_spared_a_repeat_are_vouched_for_and_no_others():
+    values = list(range(10))  # every challenger wins; the first win implies nothing
+    agrees = Recheck(model_returns=tuple(float(v) for v in values))
+    record = root(10, 7, perfect_ask(values), rng(), in_order_choice, agrees)
+    assert record.vouched == {(k + 1, k) for k in range(1, 7)}
+    doubted = Recheck(model_returns=(0.0, 1.0, 2.0, 1.5, 4.0, 4.0, 6.0, 7.0, 8.0, 9.0))
+    record = root(10, 9, perfect_ask(values), rng(), in_order_choice, doubted)
+    assert record.vouched == {(2, 1), (4, 3), (6, 5), (7, 6)}  # 3 and 5 were asked again
+    assert standing_vouched(record.answers, record.vouched) == record.vouched
+    assert root(10, 7, perfect_ask(values), rng(), in_order_choice, Recheck()).vouched == set()
 
 
-def test_the_models_opinions_stay_with_the_pool_they_were_given_for():
-    def pool(seed: int) -> Segments:
-        features = np.random.default_rng(seed).random((4, 3, 2))
-        return Segments(features, features.sum(axis=2), [None] * 4, [None] * 4)
+def test_a_contradiction_in_the_session_outweighs_an_agreeing_model():
+    # as in the test above: 2 wrongly beats 1, the model disagrees, the repeat contradicts;
+    # later 7's big win is asked twice more although the model (the true values) agrees
+    values = [0.0, 5.0, 1.0, 2.0, 3.0, 4.0, 4.5, 9.0, 8.0, 0.1, 0.2, 0.3]
+    truth = perfect_ask(values)
+    slipped: list[bool] = []
 
-    own = pool(0)
-    judged = Recheck(model_returns=(0.0, 1.0, 2.0, 3.0))
-    request = SessionRequest("root", 3, 1, own, in_order_choice, rng(), 0.0, recheck=judged)
-    assert request.recheck_over(own) == judged
-    copied = Segments(own.features.copy(), own.rewards, own.states, own.contexts)
-    assert request.recheck_over(copied) == judged
-    # a stored pool of other segments (a resumed labelling session): no model opinions
-    assert request.recheck_over(pool(1)) == Recheck()
+    def slips_once(first: int, second: int) -> Answer:
+        if (first, second) == (1, 2) and not slipped:
+            slipped.append(True)
+            return truth(first, second).flipped()
+        return truth(first, second)
+
+    model = Recheck(model_returns=tuple(values))
+    record = root(12, 11, slips_once, rng(), in_order_choice, model)
+    assert asked_pairs(record)[7:] == [(1, 7)] * 3 + [(7, 8)]
+    assert standing_vouched(record.answers, record.vouched) == frozenset()
+
+
+def test_model_opinions_belong_to_one_pool():
+    opinions = Recheck(model_returns=(0.0, 1.0, 2.0))
+    with pytest.raises(ValueError, match="cover 3 segments; the pool has 10"):
+        root(10, 5, perfect_ask(list(range(10))), rng(), in_order_choice, opinions)
+    steady = [AnsweredQuestion(Question(0, 0, 1, True), Answer.FIRST)]
+    assert opinions.after(steady).model_returns is None  # the next session has its own
+
+
+def test_a_vouched_answer_lets_the_stored_closure_chain_through_it():
+    features = np.zeros((3, 2, 1))
+    pool = Segments(features, np.array([[2.0], [1.0], [0.0]]), [None] * 3, [None] * 3)
+    answers = tuple(
+        AnsweredQuestion(Question(k, a, b, True), Answer.FIRST)
+        for k, (a, b) in enumerate([(0, 1), (1, 2)])
+    )
+    request = SessionRequest(
+        "sequential", 2, 0, pool, in_order_choice, rng(), 0.0, recheck=Recheck()
+    )
+    inferred = []
+    for vouched in (frozenset(), frozenset({(0, 1)})):
+        labels = LabelStore()
+        record = SessionRecord("sequential", answers, (0, 1, 2), vouched)
+        store_session(pool, record, labels, request)
+        inferred.append(sum(labels.inferred))
+    assert inferred == [0, 1]  # 0 > 2 through the vouched 0 > 1 and the one unconfirmed 1 > 2
 
 
 def test_a_teacher_who_contradicted_themselves_stays_so_for_the_next_sessions():

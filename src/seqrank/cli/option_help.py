@@ -38,9 +38,10 @@ MEANINGS = {
     "segment_length": "steps per compared segment",
     "augment": "full (the paper's transitive closure) or checked (noise-aware: re-checks "
     "and trusted paths)",
-    "recheck_gain": "checked: ask an answer again when it would imply this many new pairs",
+    "recheck_gain": "checked: ask an answer again when it would imply this many new pairs "
+    "(unless the fitted model agrees with a teacher never contradicted)",
     "recheck_twice_gain": "checked: ... twice from this many on, once contradicted",
-    "path_unchecked": "checked: unrepeated answers allowed on an inferred pair's path",
+    "path_unchecked": "checked: unconfirmed answers allowed on an inferred pair's path",
     "selection": "which segments are asked about: uniform, disagreement, entropy",
     "oversample": "disagreement and entropy: candidates per question",
     "episodes_kept": "recent episodes that segments are cut from",

@@ -18,6 +18,9 @@ from seqrank.feedback.schemes import SCHEMES
 from seqrank.feedback.teachers import TEACHER_PRESETS
 from seqrank.simulate import AUGMENTS, simulate
 
+# Recheck fields that a run's loop sets, not the user: left out of the printed settings
+_RUN_STATE = ("contradicted", "model_returns")
+
 
 def add_parser(commands: Any) -> None:
     sim = commands.add_parser(
@@ -117,7 +120,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "schemes": args.schemes,
             "teachers": args.teachers,
             "augment": args.augment,
-            "recheck": {k: v for k, v in asdict(checking).items() if k != "contradicted"},
+            "recheck": {k: v for k, v in asdict(checking).items() if k not in _RUN_STATE},
             "seed": args.seed,
         },
         "results": [cell.as_dict() for cell in results],

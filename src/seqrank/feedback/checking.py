@@ -2,7 +2,7 @@
 
 With a perfect teacher every answer can be chained; with a noisy one, a single wrong answer
 that the closure chains (root's challenger wrongly beating the root places it above the
-whole tree) turns into many wrong labels. Two parts work together:
+whole tree) turns into many wrong labels. Three parts work together:
 
 - in the session, an answer whose transitive closure would add at least `gain` new pairs
   is asked again; it stands only if every repeat agrees, otherwise the scheme treats the
@@ -66,17 +66,22 @@ class Recheck:
     def repeats(self, answers: Sequence[AnsweredQuestion]) -> int:
         """How many more times to ask the last of `answers`: by how many new pairs the
         paper's closure would infer if it were trusted."""
+        return self.decide(answers)[0]
+
+    def decide(self, answers: Sequence[AnsweredQuestion]) -> tuple[int, bool]:
+        """(repeats, spared) for the last of `answers`: spared when it would have been
+        asked again but the fitted model agrees with it (then it is vouched for)."""
         if answers[-1].answer not in (Answer.FIRST, Answer.SECOND):
-            return 0
+            return 0, False
         gain = augment(answers).stats.inferred - augment(answers[:-1]).stats.inferred
         if gain < self.gain:
-            return 0
+            return 0, False
         contradicted = self.contradicted or contradicts_itself(_asked(answers))
         if not contradicted and self.model_agrees(answers[-1]):
-            return 0
+            return 0, True
         if gain < self.twice_gain:
-            return 1
-        return 2 if contradicted else 1
+            return 1, False
+        return (2 if contradicted else 1), False
 
     def model_agrees(self, answer: AnsweredQuestion) -> bool:
         """Whether the fitted reward model ranks the pair as the teacher did (a tie is
@@ -86,25 +91,19 @@ class Recheck:
         first, second = self.model_returns[answer.first], self.model_returns[answer.second]
         return first > second if answer.answer is Answer.FIRST else second > first
 
-    def vouched(self, answers: Sequence[AnsweredQuestion]) -> frozenset[tuple[int, int]]:
-        """Winner-loser edges the closure may take as confirmed without a repeat: the
-        answers the fitted model agrees with, of a teacher who has not contradicted
-        themselves (in this session or before): the trust that spared them the repeat."""
-        if self.model_returns is None or self.contradicted:
-            return frozenset()
-        if contradicts_itself(_asked(answers)):
-            return frozenset()
-        return frozenset(
-            (a.first, a.second) if a.answer is Answer.FIRST else (a.second, a.first)
-            for a in answers
-            if a.answer in (Answer.FIRST, Answer.SECOND) and self.model_agrees(a)
-        )
-
     def after(self, answers: Sequence[AnsweredQuestion]) -> Recheck:
-        """These settings for the teacher's next session, given this session's answers."""
-        if self.contradicted or not contradicts_itself(_asked(answers)):
-            return self
-        return replace(self, contradicted=True)
+        """These settings for the teacher's next session, given this session's answers
+        (without this session's model opinions, which index its own pool)."""
+        contradicted = self.contradicted or contradicts_itself(_asked(answers))
+        return replace(self, contradicted=contradicted, model_returns=None)
+
+
+def standing_vouched(
+    answers: Sequence[AnsweredQuestion], vouched: frozenset[tuple[int, int]]
+) -> frozenset[tuple[int, int]]:
+    """The vouched (winner, loser) edges the closure may take as confirmed: none once the
+    session holds a contradiction, since the trust was in a teacher who had none."""
+    return frozenset() if contradicts_itself(_asked(answers)) else vouched
 
 
 def contradicts_itself(asked: Iterable[tuple[int, int, Answer]]) -> bool:
@@ -129,14 +128,14 @@ def _asked(answers: Iterable[AnsweredQuestion]) -> Iterable[tuple[int, int, Answ
 
 def confirmed_answer(
     answers: list[AnsweredQuestion],
-    recheck: Recheck,
+    repeats: int,
     ask_again: Callable[[], Answer],
     budget_left: Callable[[], int],
 ) -> Answer:
-    """The last answer if its repeats (asked while budget is left) all agree with it;
+    """The last answer if its `repeats` (asked while budget is left) all agree with it;
     SKIP when one disagrees. Repeats are appended to `answers` by `ask_again`."""
     first = answers[-1].answer
-    for _ in range(recheck.repeats(answers)):
+    for _ in range(repeats):
         if budget_left() <= 0:
             break
         if ask_again() is not first:

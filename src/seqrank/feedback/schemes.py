@@ -69,6 +69,9 @@ class SessionRecord:
     scheme: str
     answers: tuple[AnsweredQuestion, ...]
     segments: tuple[int, ...]
+    # (winner, loser) of the answers the fitted model agreed with instead of a repeat
+    # (`augment checked`); the closure may take them as confirmed
+    vouched: frozenset[tuple[int, int]] = frozenset()
 
     @property
     def asked(self) -> int:
@@ -87,9 +90,16 @@ class _Session:
         choose: Chooser,
         recheck: Recheck | None,
     ):
+        opinions = None if recheck is None else recheck.model_returns
+        if opinions is not None and len(opinions) != pool_size:
+            raise ValueError(
+                f"the re-check's model opinions cover {len(opinions)} segments; the pool "
+                f"has {pool_size} (opinions belong to the pool they were given for)"
+            )
         self.available = list(range(pool_size))
         self.drawn: list[int] = []
         self.answers: list[AnsweredQuestion] = []
+        self.vouched: set[tuple[int, int]] = set()
         self.budget, self.recheck = budget, recheck
         self._ask, self._rng, self._choose = ask, rng, choose
 
@@ -115,10 +125,15 @@ class _Session:
         answer = ask_once()
         if self.recheck is None:
             return answer
-        return confirmed_answer(self.answers, self.recheck, ask_once, lambda: self.budget_left)
+        repeats, spared = self.recheck.decide(self.answers)
+        if spared:
+            self.vouched.add((first, second) if answer is Answer.FIRST else (second, first))
+        return confirmed_answer(self.answers, repeats, ask_once, lambda: self.budget_left)
 
     def record(self, scheme: str) -> SessionRecord:
-        return SessionRecord(scheme, tuple(self.answers), tuple(self.drawn))
+        return SessionRecord(
+            scheme, tuple(self.answers), tuple(self.drawn), frozenset(self.vouched)
+        )
 
 
 def pairwise(

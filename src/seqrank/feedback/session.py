@@ -15,7 +15,7 @@ from typing import Protocol
 import numpy as np
 
 from seqrank.episodes import EpisodeStore, Segments
-from seqrank.feedback.checking import Recheck
+from seqrank.feedback.checking import Recheck, standing_vouched
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import Ask, Chooser, SessionRecord, get_scheme, segments_needed
@@ -43,15 +43,6 @@ class SessionRequest:
         scheme = get_scheme(self.scheme)
         pool = len(self.segments.rewards)
         return scheme(pool, self.questions, ask, self.rng, self.chooser, self.recheck)
-
-    def recheck_over(self, pool: Segments) -> Recheck | None:
-        """The re-check settings for questions over `pool`: the model's opinions index
-        this request's own pool, so they are left out for another (a stored one)."""
-        if self.recheck is None or self.recheck.model_returns is None:
-            return self.recheck
-        if pool is self.segments or np.array_equal(pool.features, self.segments.features):
-            return self.recheck
-        return replace(self.recheck, model_returns=None)
 
     # with `query_episodes`: the numbers of the first and last episode the pool is cut from
     episodes: tuple[int, int] | None = None
@@ -179,9 +170,9 @@ def store_session(
     """Augment the answers by transitivity (with `augment checked`, along paths of few
     unconfirmed answers) and store asked and inferred pairs."""
     true_returns = segments.rewards.sum(axis=1)
-    recheck = request.recheck_over(segments)
+    recheck = request.recheck
     path_unchecked = None if recheck is None else recheck.path_unchecked
-    vouched = frozenset() if recheck is None else recheck.vouched(record.answers)
+    vouched = standing_vouched(record.answers, record.vouched)
     augmentation = augment(record.answers, true_returns.tolist(), path_unchecked, vouched)
     labels.add_session(
         segments, true_returns, record.segments, augmentation, request.session, record

@@ -12,6 +12,7 @@ queries return are in `seqrank.labelling.db_records`.
 
 from __future__ import annotations
 
+import json
 import sqlite3
 import threading
 import time
@@ -112,16 +113,24 @@ class LabelDB:
         defender_side: str,
         segments: Segments,
         pool_ids: list[int] | None = None,
+        model_returns: tuple[float, ...] | None = None,
     ) -> None:
         """Store a session and its whole candidate pool, in one transaction.
 
         `pool_ids` names the segments (default 0, 1, ...): an import keeps a file's names.
+        `model_returns`: the reward model's opinion of each pooled segment (`augment
+        checked`), kept so that a resumed session asks what it asked before.
         """
         with self._transaction() as conn:
             conn.execute(
                 "INSERT INTO sessions VALUES (?, ?, ?, ?, ?, ?, ?)",
                 (run, session, scheme, questions, seed, defender_side, time.time()),
             )
+            if model_returns is not None:
+                conn.execute(
+                    "INSERT OR REPLACE INTO meta VALUES (?, ?)",
+                    (_opinions_key(run, session), json.dumps(list(model_returns))),
+                )
             ids = pool_ids if pool_ids is not None else list(range(len(segments.features)))
             for row, pool_id in enumerate(ids):
                 conn.execute(
@@ -129,6 +138,11 @@ class LabelDB:
                     "states, context) VALUES (?, ?, ?, ?, ?, ?, ?)",
                     segment_values(run, session, pool_id, segments, row),
                 )
+
+    def model_returns(self, run: str, session: int) -> tuple[float, ...] | None:
+        """The model's opinions stored with a session; None when it had none."""
+        stored = self.get_meta(_opinions_key(run, session))
+        return None if stored is None else tuple(float(v) for v in json.loads(stored))
 
     def pool(self, run: str, session: int) -> Segments:
         rows = self._rows(
@@ -311,3 +325,7 @@ class LabelDB:
                 (run, scheme, satisfaction, criteria, annotator, time.time()),
             )
             return cursor.rowcount == 1
+
+
+def _opinions_key(run: str, session: int) -> str:
+    return f"model_returns/{run}/{session}"

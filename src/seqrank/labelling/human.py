@@ -13,11 +13,12 @@ from __future__ import annotations
 import sqlite3
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from seqrank.episodes import Segments
+from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SessionRecord, get_scheme, scheme_has_defender
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.clips import ClipRenderer
@@ -103,7 +104,7 @@ class HumanSource:
             page_session.ask,
             np.random.default_rng(page_session.seed),
             page_session.choose,
-            request.recheck_over(pool),
+            _stored_recheck(request, db.model_returns(self.run, request.session)),
         )
         return pool, record
 
@@ -114,8 +115,16 @@ class HumanSource:
         if row is None:
             seed = _session_seed(self.seed, run, session)
             side = "left" if np.random.default_rng(seed).random() < 0.5 else "right"
+            opinions = None if request.recheck is None else request.recheck.model_returns
             db.create_session(
-                run, session, request.scheme, request.questions, seed, side, request.segments
+                run,
+                session,
+                request.scheme,
+                request.questions,
+                seed,
+                side,
+                request.segments,
+                model_returns=opinions,
             )
             row = db.session_row(run, session)
             assert row is not None
@@ -181,3 +190,11 @@ class _PageSession:
         if stored is None:
             raise Stopped("the labelling server stopped")
         return Answer(stored.answer)
+
+
+def _stored_recheck(request: SessionRequest, opinions: tuple[float, ...] | None) -> Recheck | None:
+    """The re-check the session was first asked with: the model's opinions stored with it
+    (they index the stored pool, which a resumed run may not sample again)."""
+    if request.recheck is None:
+        return None
+    return replace(request.recheck, model_returns=opinions)
