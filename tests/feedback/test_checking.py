@@ -23,6 +23,23 @@ def asked_pairs(record):
     return [(a.first, a.second) for a in record.answers]
 
 
+# root in order: 1 beats 0; 2 wrongly beats 1 once; later 7 beats 1 with 5 pairs implied
+SLIP_VALUES = [0.0, 5.0, 1.0, 2.0, 3.0, 4.0, 4.5, 9.0, 8.0, 0.1, 0.2, 0.3]
+
+
+def slips_once_on_1_2():  # type: ignore[no-untyped-def]
+    """A perfect teacher on SLIP_VALUES whose first answer to (1, 2) is flipped."""
+    truth, slipped = perfect_ask(SLIP_VALUES), []
+
+    def ask(first: int, second: int) -> Answer:
+        if (first, second) == (1, 2) and not slipped:
+            slipped.append(True)
+            return truth(first, second).flipped()
+        return truth(first, second)
+
+    return ask
+
+
 def test_a_winning_challenger_is_asked_again_before_it_becomes_the_root():
     # in-order draws, values rising: every challenger wins. The first win implies nothing
     # (no tree yet); each later one implies pairs, so it is asked a second time.
@@ -96,16 +113,8 @@ def test_a_win_that_would_imply_many_pairs_is_asked_twice_more_of_a_teacher_who_
 def test_a_contradiction_earlier_in_the_session_makes_big_wins_asked_twice_more():
     # 1 beats 0; 2 wrongly beats 1 (would imply 2 > 0), the repeat disagrees and 1 stays
     # the root; 1 beats 3..6; 7's win would imply 5 pairs (7 > 0, 3..6): asked twice more
-    values = [0.0, 5.0, 1.0, 2.0, 3.0, 4.0, 4.5, 9.0, 8.0, 0.1, 0.2, 0.3]
-    truth = perfect_ask(values)
-    slipped: list[bool] = []
-
-    def slips_once(first: int, second: int) -> Answer:
-        if (first, second) == (1, 2) and not slipped:
-            slipped.append(True)
-            return truth(first, second).flipped()
-        return truth(first, second)
-
+    values = SLIP_VALUES
+    truth, slips_once = perfect_ask(values), slips_once_on_1_2()
     record = root(12, 11, slips_once, rng(), in_order_choice, Recheck())
     pairs = asked_pairs(record)
     assert pairs[:3] == [(0, 1), (1, 2), (1, 2)] and pairs[7:] == [(1, 7)] * 3 + [(7, 8)]
@@ -148,18 +157,8 @@ def test_the_answers_the_model_spared_a_repeat_are_vouched_for_and_no_others():
 def test_a_contradiction_in_the_session_outweighs_an_agreeing_model():
     # as in the test above: 2 wrongly beats 1, the model disagrees, the repeat contradicts;
     # later 7's big win is asked twice more although the model (the true values) agrees
-    values = [0.0, 5.0, 1.0, 2.0, 3.0, 4.0, 4.5, 9.0, 8.0, 0.1, 0.2, 0.3]
-    truth = perfect_ask(values)
-    slipped: list[bool] = []
-
-    def slips_once(first: int, second: int) -> Answer:
-        if (first, second) == (1, 2) and not slipped:
-            slipped.append(True)
-            return truth(first, second).flipped()
-        return truth(first, second)
-
-    model = Recheck(model_returns=tuple(values))
-    record = root(12, 11, slips_once, rng(), in_order_choice, model)
+    model = Recheck(model_returns=tuple(SLIP_VALUES))
+    record = root(12, 11, slips_once_on_1_2(), rng(), in_order_choice, model)
     assert asked_pairs(record)[7:] == [(1, 7)] * 3 + [(7, 8)]
     assert standing_vouched(record.answers, record.vouched) == frozenset()
 
