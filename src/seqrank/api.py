@@ -55,8 +55,8 @@ def close_preferences(
     """The answered pairs plus every pair they imply by transitivity (segments caught in a
     preference cycle imply nothing; with `path_unchecked`, only along paths with at most
     that many unconfirmed answers; `vouched` (winner, loser) answers count as confirmed,
-    as `Recheck.vouched` gives them). With `true_returns` (per segment id) the stats count
-    the labels those returns contradict."""
+    as a session's `SessionRecord.vouched` gives them). With `true_returns` (per segment
+    id) the stats count the labels those returns contradict."""
     return augment(answers, true_returns, path_unchecked, vouched)
 
 

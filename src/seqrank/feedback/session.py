@@ -146,7 +146,9 @@ def prepare_session(
     if recheck is not None and contradicted:
         recheck = replace(recheck, contradicted=True)
     if recheck is not None and model_fit:
-        predicted = reward_model.member_returns(sampled.features).mean(axis=0)
+        if member_returns is None:  # (an informative selection has them already)
+            member_returns = reward_model.member_returns(sampled.features)
+        predicted = member_returns.mean(axis=0)
         recheck = replace(recheck, model_returns=tuple(predicted.tolist()))
     return SessionRequest(
         plan.scheme,
