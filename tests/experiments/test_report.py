@@ -260,7 +260,10 @@ def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
         reward_learner="rime",
         hybrid_replay=0.5,
     )
+    warm = dict(reward_learner="rime", warm_start=1)
+    fake_run(tmp_path / "root_rime_warm", "walker_walk", "root", 0, [1.0, 380.0], **warm)
     assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
     report = json.loads((tmp_path / "r" / "report.json").read_text())
-    assert sorted(report["methods"]) == ["root", "root+checked", "root+rime+qpa"]
+    methods = ["root", "root+checked", "root+rime+qpa", "root+rime+warm"]
+    assert sorted(report["methods"]) == methods
     assert report["notes"] == []  # nothing else differs: no split

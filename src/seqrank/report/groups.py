@@ -30,6 +30,7 @@ SAME_METHOD = {
     "reward",
     "augment",
     "reward_learner",
+    "warm_start",
 }
 # settings a baseline run (which asks no questions) never uses
 FEEDBACK_ONLY = {

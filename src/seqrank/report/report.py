@@ -64,12 +64,15 @@ def method_names(runs: list[RunResult]) -> dict[Path, str]:
 
 
 def beyond_the_paper(settings: Mapping[str, Any]) -> str:
-    """`+checked`, `+surf` or `+rime`, `+qpa`: the options beyond the paper a run used."""
+    """`+checked`, `+surf` or `+rime`, `+warm`, `+qpa`: the options beyond the paper a run
+    used."""
     marks = ""
     if settings.get("augment", "full") != "full":
         marks += f"+{settings['augment']}"
     if settings.get("reward_learner", "plain") != "plain":
         marks += f"+{settings['reward_learner']}"
+    if settings.get("warm_start"):  # RIME's warm start, with any learner
+        marks += "+warm"
     if settings.get("query_episodes") or settings.get("hybrid_replay"):
         marks += "+qpa"
     return marks
