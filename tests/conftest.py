@@ -3,8 +3,13 @@ from __future__ import annotations
 import contextlib
 import importlib
 import pkgutil
+import subprocess
+import warnings
+from pathlib import Path
 
 import pytest
+
+CHECKOUT = Path(__file__).resolve().parents[1]
 
 
 def _import_anyio_whole() -> None:
@@ -24,6 +29,61 @@ def _import_anyio_whole() -> None:
 
 
 _import_anyio_whole()
+
+
+def _mujoco_warnings_as_python_warnings() -> None:
+    """MuJoCo appends its warnings (a deprecated attribute in HalfCheetah's model, say) to
+    MUJOCO_LOG.TXT in the working directory, the checkout; in tests they become Python
+    warnings instead, which pytest reports."""
+    importlib.import_module("seqrank.envs.base")  # chooses headless GL before MuJoCo loads
+    mujoco = importlib.import_module("mujoco")
+    mujoco.set_mju_user_warning(lambda text: warnings.warn(f"MuJoCo: {text}", stacklevel=1))
+
+
+_mujoco_warnings_as_python_warnings()
+
+
+def _checkout_changes() -> set[str] | None:
+    """What `git status` lists in the checkout (changed and untracked files, ignored ones
+    left out); None outside a git checkout (the wheel's test run)."""
+    try:
+        listed = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=all"],
+            cwd=CHECKOUT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return set(listed.splitlines())
+
+
+def _is_controller(session: pytest.Session) -> bool:
+    return not hasattr(session.config, "workerinput")  # an xdist worker has it
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    if _is_controller(session):
+        session.config.stash[_BEFORE] = _checkout_changes()
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Tests write into tmp_path, never into the checkout: anything the run added to
+    `git status` fails it."""
+    if not _is_controller(session):
+        return
+    before, after = session.config.stash.get(_BEFORE, None), _checkout_changes()
+    if before is None or after is None or not after - before:
+        return
+    written = ", ".join(sorted(line[3:] for line in after - before))
+    writer = session.config.get_terminal_writer()
+    writer.line()
+    writer.line(f"tests wrote into the checkout: {written}", red=True)
+    session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+_BEFORE = pytest.StashKey[set[str] | None]()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

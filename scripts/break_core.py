@@ -1,0 +1,211 @@
+#!/usr/bin/env python3
+"""Break the core on purpose, one line at a time, and check that the tests notice.
+
+Each entry below is a one-line change that a slip of the hand could make in the core
+(closure, schemes, teachers, reward model, SAC, relabelling, critic reset, statistics),
+with the tests that must then fail. The script applies each to a copy of `src/` and runs
+those tests against the copy; an entry the tests let pass is a hole in the suite.
+
+    .venv/bin/python scripts/break_core.py              # every entry (about 5 minutes)
+    .venv/bin/python scripts/break_core.py --only sac   # entries whose name contains "sac"
+    .venv/bin/python scripts/break_core.py --list
+
+When you change the core, add the breaks your change could suffer here, and run them:
+`tests/test_break_core.py` keeps every entry applicable to today's source.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Break:
+    name: str
+    file: str  # relative to src/seqrank
+    old: str  # must occur exactly once in the file
+    new: str
+    tests: tuple[str, ...]
+
+
+BREAKS = (
+    Break(
+        "loop: the first session's critic reset skipped",
+        "training/loop.py",
+        "    if first:\n        reset_critic(",
+        "    if False:\n        reset_critic(",
+        ("tests/training/test_session_effects.py",),
+    ),
+    Break(
+        "loop: no relabelling after a session",
+        "training/loop.py",
+        "c.asked)\n    t.reward.relabel()\n",
+        "c.asked)\n",
+        ("tests/training/test_session_effects.py",),
+    ),
+    Break(
+        "sac: the entropy term dropped from the target value",
+        "agents/sac.py",
+        "soft_value = torch.min(q1, q2) - self.alpha * next_log_prob",
+        "soft_value = torch.min(q1, q2)",
+        ("tests/agents/test_sac_by_hand.py",),
+    ),
+    Break(
+        "sac: the target value not discounted",
+        "agents/sac.py",
+        "return self.settings.discount * batch.not_done * soft_value",
+        "return batch.not_done * soft_value",
+        ("tests/agents/test_sac_by_hand.py",),
+    ),
+    Break(
+        "sac: terminal transitions bootstrapped",
+        "agents/sac.py",
+        "return self.settings.discount * batch.not_done * soft_value",
+        "return self.settings.discount * soft_value",
+        ("tests/agents/test_sac_by_hand.py",),
+    ),
+    Break(
+        "sac: the temperature steps the wrong way",
+        "agents/sac.py",
+        "(-log_prob.detach() - self.target_entropy)",
+        "(log_prob.detach() - self.target_entropy)",
+        ("tests/agents/test_sac_by_hand.py",),
+    ),
+    Break(
+        "sac: the reset target critic not synced to the new critic",
+        "agents/sac.py",
+        "self.critic_target.reinitialise()\n        self.critic_target.load_state_dict(",
+        "self.critic_target.reinitialise()\n        dict(",
+        ("tests/agents/test_sac_paths.py",),
+    ),
+    Break(
+        "reward model: equal labels counted as hard in the training accuracy",
+        "reward/model.py",
+        "hard = y != 0.5",
+        "hard = y == y",
+        ("tests/reward/test_training_accuracy.py",),
+    ),
+    Break(
+        "reward model: Bradley-Terry logits the wrong way round",
+        "reward/model.py",
+        "logits = model.segment_returns(segments[first]) - model.segment_returns(segments[second])",
+        "logits = model.segment_returns(segments[second]) - model.segment_returns(segments[first])",
+        ("tests/reward/test_learners.py", "tests/reward/test_training_accuracy.py"),
+    ),
+    Break(
+        "schemes: root keeps the loser",
+        "feedback/schemes.py",
+        "first_is_defender=True) is Answer.SECOND:",
+        "first_is_defender=True) is Answer.FIRST:",
+        ("tests/feedback/test_schemes.py",),
+    ),
+    Break(
+        "schemes: sequential keeps its first segment as the defender",
+        "feedback/schemes.py",
+        "        defender = challenger\n",
+        "        pass\n",
+        ("tests/feedback/test_schemes.py",),
+    ),
+    Break(
+        "teachers: the mistake never flips",
+        "feedback/teachers.py",
+        "answer = answer.flipped()",
+        "answer = answer",
+        ("tests/feedback/test_teachers.py",),
+    ),
+    Break(
+        "teachers: myopia weights the first step most",
+        "feedback/teachers.py",
+        "weights = gamma ** np.arange(horizon - 1, -1, -1, dtype=np.float64)",
+        "weights = gamma ** np.arange(horizon, dtype=np.float64)",
+        ("tests/feedback/test_teachers.py",),
+    ),
+    Break(
+        "closure: a majority vote read the wrong way round",
+        "feedback/closure.py",
+        "edge = (a, b) if mean > 0.5 else (b, a)",
+        "edge = (b, a) if mean > 0.5 else (a, b)",
+        ("tests/feedback/test_closure.py",),
+    ),
+    Break(
+        "statistics: the bootstrap interval at 90%, not 95%",
+        "report/stats.py",
+        "tail = 100 * (1 - level) / 2",
+        "tail = 100 * (1 - level)",
+        ("tests/experiments/test_report_interval_level.py",),
+    ),
+    Break(
+        "statistics: ties count fully in the probability of improvement",
+        "report/stats.py",
+        "(a > b) + 0.5 * (a == b)",
+        "(a > b) + 1.0 * (a == b)",
+        ("tests/experiments/test_report.py",),
+    ),
+    Break(
+        "statistics: the IQM trims 20%",
+        "report/stats.py",
+        "trim_mean(np.asarray(values, np.float64), 0.25)",
+        "trim_mean(np.asarray(values, np.float64), 0.2)",
+        ("tests/experiments/test_report.py",),
+    ),
+)
+
+
+def apply(source: Path, entry: Break) -> None:
+    path = source / "seqrank" / entry.file
+    text = path.read_text()
+    found = text.count(entry.old)
+    if found != 1:
+        raise SystemExit(f"{entry.name}: {entry.file} holds the line {found} times, not once")
+    path.write_text(text.replace(entry.old, entry.new))
+
+
+def caught(entry: Break) -> bool:
+    """Whether the entry's tests fail (pytest exit 1) against a broken copy of src/."""
+    with tempfile.TemporaryDirectory() as scratch:
+        source = Path(scratch) / "src"
+        shutil.copytree(ROOT / "src", source, ignore=shutil.ignore_patterns("__pycache__"))
+        apply(source, entry)
+        env = dict(os.environ, PYTHONPATH=str(source), OMP_NUM_THREADS="1")
+        command = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider"]
+        done = subprocess.run(
+            [*command, *entry.tests], cwd=ROOT, env=env, capture_output=True, text=True
+        )
+        if done.returncode not in (0, 1):
+            failure = f"pytest could not run ({done.returncode})"
+            raise SystemExit(f"{entry.name}: {failure}:\n{done.stdout}")
+        return done.returncode == 1
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", default="", help="entries whose name contains this text")
+    parser.add_argument("--list", action="store_true", help="list the entries and stop")
+    args = parser.parse_args()
+    chosen = [b for b in BREAKS if args.only in b.name]
+    if not chosen:
+        raise SystemExit(f"no entry's name contains {args.only!r}; see --list")
+    if args.list:
+        print("\n".join(b.name for b in chosen))
+        return 0
+    missed = []
+    for entry in chosen:
+        verdict = "caught" if caught(entry) else "MISSED"
+        print(f"{verdict:7} {entry.name}", flush=True)
+        if verdict == "MISSED":
+            missed.append(entry.name)
+    print(f"{len(chosen) - len(missed)} of {len(chosen)} breaks caught")
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
