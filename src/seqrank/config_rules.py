@@ -1,5 +1,6 @@
 """The rules a run's settings must keep together, beyond each setting's own range: each
-raises SettingError naming the bad value and what is accepted (called by `validate`)."""
+raises SettingError naming the bad value and what is accepted (called by `validate`; those
+of a replayed label file by `resolve_config`, which knows the settings the user gave)."""
 
 from __future__ import annotations
 
@@ -151,7 +152,7 @@ def replayed(teacher: Any) -> Recorded | None:
     file that is missing or does not parse is a ValueError naming it."""
     if not isinstance(teacher, str) or parse_teacher(teacher).kind != "replay":
         return None
-    from seqrank.feedback.replay import ReplaySource  # (imports torch: not for --help)
+    from seqrank.feedback.replay import ReplaySource  # (with the reward model: only here)
 
     file = parse_teacher(teacher).replay_file
     assert file is not None
@@ -174,10 +175,11 @@ def recorded_values(recorded: Recorded, budget: Any) -> dict[str, Any]:
 
 
 def check_recorded(config: TrainConfig, recorded: Recorded, given: Collection[str]) -> None:
-    """A replaying run's settings given otherwise than its label file recorded them: the
-    run would use the file's and record the given ones."""
+    """A replaying run's settings given otherwise than its label file recorded them (the
+    run would use the file's and record the given ones), a budget beyond its answers, and
+    a selection of new segments (the file's were chosen when it was recorded)."""
     taken = recorded_values(recorded, config.max_feedback)
-    for name in RECORDED.keys() & set(given) & taken.keys():
+    for name in (n for n in RECORDED if n in given and n in taken):
         if not _same(name, getattr(config, name), taken[name]):
             raise SettingError(
                 f"{setting(name)} {getattr(config, name)} conflicts with the replay file's "

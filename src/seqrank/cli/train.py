@@ -160,7 +160,8 @@ def _check_with_env(config: TrainConfig) -> None:
     env = make_env(config.task, config.seed)
     try:
         check_fits(config, env)
-        make_source(config.teacher).check_compatible(config.task, env.obs_dim, env.act_dim)
+        if config.teacher_spec.kind == "replay":  # (`label online` brings its own source)
+            make_source(config.teacher).check_compatible(config.task, env.obs_dim, env.act_dim)
     finally:
         env.close()
 
