@@ -86,7 +86,8 @@ def workspace(tmp_path_factory) -> Path:
         "\n".join(
             json.dumps(line)
             for line in (
-                {"type": "header", "format": "seqrank-labels", "version": 1},
+                {"type": "header", "format": "seqrank-labels", "version": 1}
+                | {"task": "dmc:cartpole_swingup"},  # 5 observations + 1 action
                 {"type": "segment", "id": "a", "features": features, "rewards": [0.0] * 50},
                 {"type": "segment", "id": "b", "features": features, "rewards": [1.0] * 50},
                 {"type": "answer", "run": "r", "scheme": "pairwise", "session": 0, "index": 0}

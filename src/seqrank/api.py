@@ -60,9 +60,11 @@ def close_preferences(
     return augment(answers, true_returns, path_unchecked, vouched)
 
 
-def make_config(task: str = "walker_walk", scale: str = "small", **settings: Any) -> TrainConfig:
+def make_config(task: str | None = None, scale: str = "small", **settings: Any) -> TrainConfig:
     """A run's settings as `seqrank train --task TASK --scale SCALE --KEY VALUE ...` would
-    resolve them; a ValueError names a bad value or an unknown setting."""
+    resolve them (no task: walker_walk, or a `teacher="replay:FILE"` file's task; the
+    settings the file fixes are taken from it); a ValueError names a bad value or an
+    unknown setting."""
     known = {f.name for f in fields(TrainConfig)}
     unknown = sorted(set(settings) - known)
     if unknown:

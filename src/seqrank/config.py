@@ -174,15 +174,25 @@ class TrainConfig:
         return asdict(self)
 
 
-def resolve_config(task: str, scale: str, overrides: dict[str, Any]) -> TrainConfig:
-    """Suite defaults, then Table 2, then the size preset, then the user's overrides."""
+def resolve_config(task: str | None, scale: str, overrides: dict[str, Any]) -> TrainConfig:
+    """Suite defaults, then Table 2, then the size preset, then what a replayed label file
+    fixes (`config_rules.recorded_values`), then the user's overrides, which must agree
+    with the file. `task` None: the label file's, else the default."""
+    recorded = rules.replayed(overrides.get("teacher"))
+    taken = (
+        {} if recorded is None else rules.recorded_values(recorded, overrides.get("max_feedback"))
+    )
+    given = {*overrides, "task"} if task is not None else set(overrides)
+    task = task if task is not None else taken.get("task", TrainConfig.task)
     values = table2_overrides(task)
     if scale == "small":
         block = canonical_task(task)[0] == "block"
         values.update(BLOCK_SMALL_PRESET if block else SMALL_PRESET)
-    values["scale"] = scale
+    values.update({**taken, "task": task, "scale": scale})
     values.update(overrides)
     config = replace(TrainConfig(), **values)
+    if recorded is not None:
+        rules.check_recorded(config, recorded, given)
     validate(config)
     return config
 

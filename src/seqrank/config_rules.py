@@ -1,18 +1,22 @@
 """The rules a run's settings must keep together, beyond each setting's own range: each
-raises SettingError naming the bad value and what is accepted (called by `validate`)."""
+raises SettingError naming the bad value and what is accepted (called by `validate`; those
+of a replayed label file by `resolve_config`, which knows the settings the user gave)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Collection
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from seqrank.choices import Backbone
+from seqrank.choices import Backbone, Selection
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
+from seqrank.feedback.teachers import parse_teacher
 
 if TYPE_CHECKING:
     from seqrank.config import TrainConfig
+    from seqrank.feedback.replay import Recorded
 
 
 def check_qpa(config: TrainConfig) -> None:
@@ -132,3 +136,71 @@ def check_baseline(config: TrainConfig) -> None:
             f"{setting('teacher')} '{config.teacher}' answers questions; {setting('reward')} "
             f"'{config.reward}' asks none: leave {setting('teacher')} out"
         )
+
+
+# the settings a replayed label file fixes, as its messages name them
+RECORDED = {
+    "task": "task",
+    "scheme": "scheme",
+    "segment_length": "segment length",
+    "reward_batch": "questions per session",
+}
+
+
+def replayed(teacher: Any) -> Recorded | None:
+    """What the label file of a `replay:FILE` teacher fixes (None for other teachers); a
+    file that is missing or does not parse is a ValueError naming it."""
+    if not isinstance(teacher, str) or parse_teacher(teacher).kind != "replay":
+        return None
+    from seqrank.feedback.replay import ReplaySource  # (with the reward model: only here)
+
+    file = parse_teacher(teacher).replay_file
+    assert file is not None
+    return ReplaySource.from_file(file).recorded()
+
+
+def recorded_values(recorded: Recorded, budget: Any) -> dict[str, Any]:
+    """The settings a replaying run takes from its file where the user gives none: all its
+    answers, in sessions of the recorded size (cut to a smaller `budget` given)."""
+    per_session = recorded.session_questions
+    if isinstance(budget, int) and 0 < budget < per_session:
+        per_session = budget  # one session, cut short like the run's last
+    values = {
+        "scheme": recorded.scheme,
+        "segment_length": recorded.segment_length,
+        "reward_batch": per_session,
+        "max_feedback": recorded.answers,
+    }
+    return values if recorded.task is None else {"task": recorded.task, **values}
+
+
+def check_recorded(config: TrainConfig, recorded: Recorded, given: Collection[str]) -> None:
+    """A replaying run's settings given otherwise than its label file recorded them (the
+    run would use the file's and record the given ones), a budget beyond its answers, and
+    a selection of new segments (the file's were chosen when it was recorded)."""
+    taken = recorded_values(recorded, config.max_feedback)
+    for name in (n for n in RECORDED if n in given and n in taken):
+        if not _same(name, getattr(config, name), taken[name]):
+            raise SettingError(
+                f"{setting(name)} {getattr(config, name)} conflicts with the replay file's "
+                f"{RECORDED[name]} {taken[name]} ({recorded.file}); leave {setting(name)} out "
+                "to take the file's"
+            )
+    if config.max_feedback > recorded.answers:
+        raise SettingError(
+            f"{setting('max_feedback')} {config.max_feedback} exceeds the {recorded.answers} "
+            f"answers of the replay file ({recorded.file}); accepted: 1 to {recorded.answers}, "
+            f"or leave {setting('max_feedback')} out to replay them all"
+        )
+    if config.selection is not Selection.UNIFORM:
+        raise SettingError(
+            f"{setting('selection')} {config.selection} picks new segments to ask about; "
+            f"the replay file's were picked when it was recorded ({recorded.file}): leave "
+            f"{setting('selection')} out"
+        )
+
+
+def _same(name: str, value: Any, recorded: Any) -> bool:
+    if name == "task":
+        return bool(canonical_task(value) == canonical_task(recorded))
+    return bool(value == recorded)

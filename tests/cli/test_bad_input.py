@@ -10,6 +10,7 @@ import pytest
 
 from seqrank.cli import main
 from seqrank.training.runs import RunDir
+from support.labels import write_labels
 from support.runs import tiny_config
 
 TOML = """
@@ -24,16 +25,26 @@ out = "{out}"
 @pytest.fixture
 def given(tmp_path: Path) -> dict[str, str]:
     """Things a command may be pointed at: a plain file, a folder, a run directory (no
-    checkpoint), a folder of runs, sweep files."""
+    checkpoint), a folder of runs, sweep files, label files (sequential answers on
+    dmc:cartpole_swingup, two sessions of 4 on 20-step segments; one of 7 features per step
+    that names no task; one of two schemes)."""
     folder = tmp_path / "given"
     (folder / "runs").mkdir(parents=True)
     (folder / "a-file").write_text("not a folder\n")
     run = RunDir.create(folder / "runs" / "run", tiny_config(), "cpu")
     run.release()
+    labels = {
+        "labels": write_labels(folder / "labels.jsonl"),
+        "labels_wide": write_labels(folder / "wide.jsonl", task=None, features=7),
+        "labels_mixed": write_labels(folder / "mixed.jsonl", schemes=("sequential", "root")),
+    }
     sweeps = {
         "toml": TOML.format(out=folder / "sweep-out", extra=""),
         "toml_out_file": TOML.format(out=folder / "a-file", extra=""),
         "toml_discount": TOML.format(out=folder / "sweep-out", extra="[overrides]\ndiscount = 2"),
+        "toml_replay": TOML.format(
+            out=folder / "sweep-out", extra=f'teachers = ["replay:{labels["labels"]}"]'
+        ),
     }
     for name, text in sweeps.items():
         (folder / f"{name}.toml").write_text(text)
@@ -42,6 +53,7 @@ def given(tmp_path: Path) -> dict[str, str]:
         "dir": str(folder),
         "run": str(folder / "runs" / "run"),
         "runs": str(folder / "runs"),
+        **{name: str(path) for name, path in labels.items()},
         **{name: str(folder / f"{name}.toml") for name in sweeps},
     }
 
@@ -109,6 +121,40 @@ CASES = [
         "--steps 2147483647: the replay buffer keeps every step",
     ),
     ([*TRAIN, "--teacher", "replay:missing.jsonl"], "label file missing.jsonl does not exist"),
+    # replayed labels: a setting given otherwise than the file recorded it, and --dry-run
+    # checks the file as the run does
+    *[
+        (
+            [*TRAIN, *dry, "--teacher", "replay:{labels}", *setting],
+            f"error: {setting[0]} {setting[1]} conflicts with the replay file's {what} "
+            f"({{labels}}); leave {setting[0]} out to take the file's",
+        )
+        for dry in ([], ["--dry-run"])
+        for setting, what in [
+            (["--scheme", "root"], "scheme sequential"),
+            (["--segment-length", "25"], "segment length 20"),
+            (["--reward-batch", "10"], "questions per session 4"),
+            (["--task", "dmc:walker_walk"], "task dmc:cartpole_swingup"),
+        ]
+    ],
+    (
+        [*TRAIN, "--teacher", "replay:{labels}", "--max-feedback", "100"],
+        "--max-feedback 100 exceeds the 8 answers of the replay file ({labels}); accepted: 1 to 8",
+    ),
+    (
+        [*TRAIN, "--teacher", "replay:{labels}", "--selection", "disagreement"],
+        "--selection disagreement picks new segments to ask about; the replay file's were",
+    ),
+    ([*TRAIN, "--dry-run", "--teacher", "replay:missing.jsonl"], "missing.jsonl does not exist"),
+    ([*TRAIN, "--dry-run", "--teacher", "replay:{file}"], "error: {file} line 1: not JSON"),
+    (
+        [*TRAIN, "--dry-run", "--teacher", "replay:{labels_wide}"],
+        "label file {labels_wide} has 7 features per step; task dmc:cartpole_swingup needs 6",
+    ),
+    (
+        [*TRAIN, "--dry-run", "--teacher", "replay:{labels_mixed}"],
+        "label file {labels_mixed} holds several schemes (root, sequential); a run replays",
+    ),
     ([*TRAIN, "--teacher", "perfect"], "unknown --teacher 'perfect'; accepted: oracle"),
     ([*TRAIN, "--task", "walker"], "unknown --task 'walker'; accepted: walker_walk"),
     ([*TRAIN, "--precision", "tf32"], "--precision 'tf32' needs the fast path"),
@@ -167,6 +213,11 @@ CASES = [
     (["sweep", "{toml}", "--gpus-per-run", "-1"], "argument --gpus-per-run: -1.0 is out of range"),
     (["sweep", "{toml_out_file}"], "sweep folder {file} is a file, not a folder"),
     (["sweep", "{toml_discount}"], "seed 0: discount must be a number in (0, 1], got 2"),
+    (
+        ["sweep", "{toml_replay}", "--dry-run"],
+        "scheme root conflicts with the replay file's scheme sequential ({labels}); leave "
+        "scheme out",
+    ),
     # report
     (["report", "{file}"], "{file} is not a folder"),
     (["report", "{runs}", "--out", "{file}"], "report folder {file} is a file, not a folder"),

@@ -105,8 +105,8 @@ def test_bad_label_files_name_the_line_and_problem(tmp_path, content, message):
 
 def test_replay_teacher_trains_on_exactly_the_recorded_labels(label_file, tmp_path):
     config = tiny_config(
-        teacher=f"replay:{label_file}", steps=2300, reward_batch=8, max_feedback=24
-    )
+        teacher=f"replay:{label_file}", steps=2300, reward_batch=8, max_feedback=8
+    )  # the file's one session of 8 (tiny_config gives a budget; a larger one is refused)
     trainer = Trainer(config, RunDir.create(tmp_path / "run", config, "cpu"))
     summary = trainer.train()
     labels = read_label_file(label_file)
@@ -146,7 +146,8 @@ def test_replay_teacher_rejects_another_task_and_a_missing_file(label_file, tmp_
         ]
     )
     assert code == 2
-    assert "recorded on dmc:cartpole_swingup, not dmc:walker_walk" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--task dmc:walker_walk conflicts with the replay file's task dmc:cartpole" in err
     code = main(
         ["train", "--teacher", "replay:/nope.jsonl", "--out", str(tmp_path / "r2"), "--quiet"]
     )

@@ -131,7 +131,8 @@ def prepare_run(
             err.print(f"resuming {started.run.path} at step {started.trainer.counters.step}")
         return started
     new = new_run(args, resolve_device)
-    config = resolve_config(new.task, new.scale, new.given)
+    # no --task: a replayed label file's task, else the default
+    config = resolve_config(new.task if hasattr(args, "task") else None, new.scale, new.given)
     from seqrank.training.runtime import config_runtime
 
     config_runtime(config, new.device)  # before anything is written
@@ -142,10 +143,6 @@ def prepare_run(
         _check_wandb(wandb)
     if args.dry_run:
         _check_with_env(config)
-        if config.teacher_spec.kind == "replay":
-            from seqrank.feedback.sources import make_source
-
-            make_source(config.teacher)  # the label file is read and checked
         _describe(config, path, new, err)
         return None
     started = start_new(path, config, str(new.device), trainer_cls, wandb)
@@ -154,13 +151,17 @@ def prepare_run(
 
 
 def _check_with_env(config: TrainConfig) -> None:
-    """The checks a run makes once its environment is built (episode length, memory)."""
+    """The checks a run makes once its environment is built (episode length, memory, a
+    replayed label file's features against the task's)."""
     from seqrank.envs import make_env
+    from seqrank.feedback.sources import make_source
     from seqrank.training.trainer import check_fits
 
     env = make_env(config.task, config.seed)
     try:
         check_fits(config, env)
+        if config.teacher_spec.kind == "replay":  # (`label online` brings its own source)
+            make_source(config.teacher).check_compatible(config.task, env.obs_dim, env.act_dim)
     finally:
         env.close()
 

@@ -2,12 +2,19 @@
 
 Feedback session k of the run uses the k-th recorded session of the file (in the order the
 file lists them), with its own segments and answers; transitive labels are inferred again
-from the recorded scheme. When the file runs out, the run asks for no more feedback.
+from the recorded scheme. When the file runs out, the run asks for no more feedback; when
+the run's budget ends within a session, that session's first answers are replayed.
+
+The file fixes some of the run's settings (`Recorded`: task, scheme, segment length,
+questions per session, answers in all); `config_rules.take_recorded` makes a replaying
+run take them and refuses settings given otherwise.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from seqrank.envs import canonical_task
 from seqrank.episodes import Segments
@@ -15,6 +22,18 @@ from seqrank.feedback.label_file import LabelFile, read_label_file
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import SessionRequest
 from seqrank.types import Answer, AnsweredQuestion, Question
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """What a label file fixes of a run that replays it."""
+
+    file: str
+    task: str | None  # None: a file written before headers named the task
+    scheme: str
+    segment_length: int
+    session_questions: int  # the most answers a recorded session holds
+    answers: int
 
 
 class ReplaySource:
@@ -42,9 +61,32 @@ class ReplaySource:
                 f"needs {obs_dim + act_dim} (observation + action)"
             )
 
+    def recorded(self) -> Recorded:
+        """The settings these labels were recorded with; ValueError for a file that mixes
+        schemes or segment lengths (no one run's settings describe it)."""
+        schemes = {a["scheme"] for a in self.labels.answers}
+        lengths = {len(s["features"]) for s in self.labels.segments.values()}
+        self._refuse_mixed("schemes", schemes)
+        self._refuse_mixed("segment lengths", lengths)
+        sizes = [len(self._answers(session)) for session in range(len(self.sessions))]
+        task = self.labels.header.get("task")
+        answers = len(self.labels.answers)
+        return Recorded(self.source, task, schemes.pop(), lengths.pop(), max(sizes), answers)
+
+    def _refuse_mixed(self, what: str, values: set[str] | set[int]) -> None:
+        if len(values) > 1:
+            shown = ", ".join(str(v) for v in sorted(values))
+            raise ValueError(
+                f"label file {self.source} holds several {what} ({shown}); a run replays "
+                "labels of one: export those of one run"
+            )
+
+    def _answers(self, session: int) -> list[dict[str, Any]]:
+        key = self.sessions[session]
+        return [a for a in self.labels.answers if (a["run"], a["session"]) == key]
+
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
-        run, session = self.sessions[request.session]
-        answers = [a for a in self.labels.answers if (a["run"], a["session"]) == (run, session)]
+        answers = self._answers(request.session)[: request.questions]
         names = list(dict.fromkeys(n for a in answers for n in (a["first"], a["second"])))
         local = {name: k for k, name in enumerate(names)}
         record = SessionRecord(
