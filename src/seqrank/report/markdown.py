@@ -84,41 +84,40 @@ def _method(c: dict[str, Any]) -> str:
     return f"{c['method']} ({c['partial']} unfinished)" if c["partial"] else c["method"]
 
 
+def _section(intro: str, columns: list[str], rows: list[list[str]]) -> list[str]:
+    """A titled markdown table."""
+    head = ["", intro, "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    return head + ["| " + " | ".join(row) + " |" for row in rows]
+
+
 def _iqm_lines(report: dict[str, Any]) -> list[str]:
-    lines = [
-        "",
-        "IQM per task with 95% bootstrap CI (runs resampled):",
-        "",
-        "| task | method | IQM | 95% CI |",
-        "|---|---|---|---|",
+    rows = [
+        [c["task"], _method(c), f"{c['iqm']:.1f}", f"[{c['iqm_low']:.1f}, {c['iqm_high']:.1f}]"]
+        for c in report["table"]
     ]
-    for c in report["table"]:
-        lines.append(
-            f"| {c['task']} | {_method(c)} | {c['iqm']:.1f} | [{c['iqm_low']:.1f}, "
-            f"{c['iqm_high']:.1f}] |"
-        )
-    return lines
+    intro = "IQM per task with 95% bootstrap CI (runs resampled):"
+    return _section(intro, ["task", "method", "IQM", "95% CI"], rows)
 
 
 def _relative_lines(report: dict[str, Any]) -> list[str]:
     reference = report["reference"]
-    rows = [c for c in report["table"] if c.get("relative") is not None]
-    if reference is None or not rows:
+    cells = [c for c in report["table"] if c.get("relative") is not None]
+    if reference is None or not cells:
         return []
-    lines = [
-        "",
-        f"Score relative to the true-reward agent ({reference}): IQM / its IQM on the same "
-        "task, 95% bootstrap CI (both resampled):",
-        "",
-        "| task | method | relative score | 95% CI |",
-        "|---|---|---|---|",
+    rows = [
+        [
+            c["task"],
+            _method(c),
+            f"{c['relative']:.2f}",
+            f"[{c['relative_low']:.2f}, {c['relative_high']:.2f}]",
+        ]
+        for c in cells
     ]
-    for c in rows:
-        lines.append(
-            f"| {c['task']} | {_method(c)} | {c['relative']:.2f} | [{c['relative_low']:.2f}, "
-            f"{c['relative_high']:.2f}] |"
-        )
-    return lines
+    intro = (
+        f"Score relative to the true-reward agent ({reference}): IQM / its IQM on the same "
+        "task, 95% bootstrap CI (both resampled):"
+    )
+    return _section(intro, ["task", "method", "relative score", "95% CI"], rows)
 
 
 def _aggregate_lines(report: dict[str, Any]) -> list[str]:
@@ -126,27 +125,21 @@ def _aggregate_lines(report: dict[str, Any]) -> list[str]:
     without = (
         f" (leaves out {', '.join(left_out)}: returns of a range nothing tells)" if left_out else ""
     )
-    lines = [
-        "",
+    intro = (
         "Aggregate IQM of normalized scores (DMControl return / 1000, success rate / 100) over "
-        f"the tasks{without}, 95% stratified bootstrap CI:",
-        "",
-        "| method | IQM | 95% CI |",
-        "|---|---|---|",
+        f"the tasks{without}, 95% stratified bootstrap CI:"
+    )
+    rows = [
+        [a["method"], f"{a['iqm']:.3f}", f"[{a['low']:.3f}, {a['high']:.3f}]"]
+        for a in report["aggregate_iqm"]
     ]
-    for a in report["aggregate_iqm"]:
-        lines.append(f"| {a['method']} | {a['iqm']:.3f} | [{a['low']:.3f}, {a['high']:.3f}] |")
-    return lines
+    return _section(intro, ["method", "IQM", "95% CI"], rows)
 
 
 def _improvement_lines(report: dict[str, Any]) -> list[str]:
-    lines = [
-        "",
-        "Probability of improvement P(X > Y), averaged over tasks, 95% stratified bootstrap CI:",
-        "",
-        "| X | Y | P(X > Y) | 95% CI |",
-        "|---|---|---|---|",
+    rows = [
+        [p["x"], p["y"], f"{p['p']:.2f}", f"[{p['low']:.2f}, {p['high']:.2f}]"]
+        for p in report["probability_of_improvement"]
     ]
-    for p in report["probability_of_improvement"]:
-        lines.append(f"| {p['x']} | {p['y']} | {p['p']:.2f} | [{p['low']:.2f}, {p['high']:.2f}] |")
-    return lines
+    intro = "Probability of improvement P(X > Y), averaged over tasks, 95% stratified bootstrap CI:"
+    return _section(intro, ["X", "Y", "P(X > Y)", "95% CI"], rows)
