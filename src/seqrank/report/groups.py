@@ -97,8 +97,9 @@ def _never_splitting(run: RunResult) -> set[str]:
 def one_run_per_seed(
     runs: list[RunResult], names: dict[Path, str]
 ) -> tuple[list[RunResult], list[str]]:
-    """Baseline runs, one per task, method and seed: runs alike in every setting a baseline
-    reads (a sweep ran it once per variant) are one measurement, not more seeds."""
+    """The runs with one baseline run per task, method and seed, and a note per method that
+    had more: runs alike in every setting a baseline reads (a sweep ran it once per variant)
+    are one measurement, not more seeds."""
     alike: dict[tuple[str, str, int], list[RunResult]] = defaultdict(list)
     for run in runs:
         if run.baseline:
