@@ -103,6 +103,7 @@ def workspace(tmp_path_factory) -> Path:
         (folder / "config.json").write_text(json.dumps({**config.as_dict(), "seed": seed}))
         row = {"step": 3200, "kind": "eval", "eval_return": 100.0 + seed}
         (folder / "metrics.jsonl").write_text(json.dumps(row) + "\n")
+    (runs / "root_seed0" / "summary.json").write_text("{}")  # a partial sweep: one finished
     return root
 
 

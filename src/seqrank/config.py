@@ -174,6 +174,58 @@ class TrainConfig:
         return asdict(self)
 
 
+# The settings a baseline run never reads: its results depend on the others only, so a
+# report pools baseline runs that differ in these alone.
+# Read only where questions are asked (sessions, reward learners, re-checks, QPA, MRN):
+ASKING_ONLY = frozenset(
+    {
+        "selection",
+        "oversample",
+        "max_feedback",
+        "reward_batch",
+        "feedback_frequency",
+        "segment_length",
+        "episodes_kept",
+        "query_episodes",
+        "hybrid_replay",
+        "hybrid_episodes",
+        "meta_update_frequency",
+        "meta_loss_weight",
+        "augment",
+        "recheck_gain",
+        "recheck_twice_gain",
+        "path_unchecked",
+        "reward_learner",
+        *(f.name for f in fields(TrainConfig) if f.name.startswith(("surf_", "rime_"))),
+    }
+)
+# Read only when the reward model learns from labels (a no-feedback run's never does; RIME's
+# warm start fits it in pre-training with the optimizer, `reward_lr`):
+REWARD_FITTING = frozenset({"reward_minibatch", "reward_epochs", "reward_stop_accuracy"})
+# Read only by pre-training, the critic reset after it and the reward model, none of which
+# the true-reward agent has:
+PRETRAINING_AND_REWARD_MODEL = REWARD_FITTING | {
+    "unsup_steps",
+    "knn_k",
+    "updates_after_reset",
+    "warm_start",
+    "reward_ensemble",
+    "reward_hidden",
+    "reward_layers",
+    "reward_lr",
+}
+
+
+def unread_settings(reward: RewardSignal, warm_start: bool = False) -> frozenset[str]:
+    """The settings a run that learns from `reward` never reads (none for a learned
+    reward); `warm_start` is the run's own."""
+    if reward is RewardSignal.TRUE:
+        return ASKING_ONLY | PRETRAINING_AND_REWARD_MODEL
+    if reward is RewardSignal.NONE:
+        return ASKING_ONLY | REWARD_FITTING | (set() if warm_start else {"reward_lr"})
+    return frozenset()
+
+
 def resolve_config(task: str | None, scale: str, overrides: dict[str, Any]) -> TrainConfig:
     """Suite defaults, then Table 2, then the size preset, then what a replayed label file
     fixes (`config_rules.recorded_values`), then the user's overrides, which must agree

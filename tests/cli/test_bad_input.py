@@ -220,7 +220,11 @@ CASES = [
     ),
     # report
     (["report", "{file}"], "{file} is not a folder"),
-    (["report", "{runs}", "--out", "{file}"], "report folder {file} is a file, not a folder"),
+    (["report", "{runs}"], "{runs}: none of its 1 runs has finished (no summary.json)"),
+    (
+        ["report", "{runs}", "--include-unfinished", "--out", "{file}"],
+        "report folder {file} is a file, not a folder",
+    ),
     (["report", "{runs}", "--bootstrap", "10"], "argument --bootstrap: 10 is out of range"),
     (["report", "{runs}", "--seed", "-1"], "argument --seed: -1 is out of range"),
     # bench

@@ -100,7 +100,8 @@ def test_report_tables_match_the_runs(tmp_path):
     fake_run(tmp_path / "door" / "root_0", "door-open", "root", 0, [1.0, 2.0], [0.0, 60.0])
     fake_run(tmp_path / "door" / "root_1", "door-open", "root", 1, [1.0], [40.0], finished=False)
     fake_run(tmp_path / "door" / "pairwise_0", "door-open", "pairwise", 0, [1.0, 2.0], [0.0, 20.0])
-    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    argv = ["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]
+    assert main([*argv, "--include-unfinished"]) == 0
     report = json.loads((tmp_path / "r" / "report.json").read_text())
     cells = {(c["task"], c["method"]): c for c in report["table"]}
     walker_root = cells[("walker_walk", "root")]
@@ -267,3 +268,122 @@ def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
     methods = ["root", "root+checked", "root+rime+qpa", "root+rime+warm"]
     assert sorted(report["methods"]) == methods
     assert report["notes"] == []  # nothing else differs: no split
+
+
+def report_of(tmp_path, *options):
+    argv = ["report", str(tmp_path / "runs"), "--bootstrap", "200", "--out", str(tmp_path / "r")]
+    assert main([*argv, "--no-plots", *options]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    cells = {(c["task"], c["method"]): c for c in report["table"]}
+    return report, cells, (tmp_path / "r" / "report.md").read_text()
+
+
+def test_a_task_without_a_success_signal_is_scored_by_its_return(tmp_path):
+    runs = tmp_path / "runs"
+    for seed, (hopper, walker) in enumerate([(86.0, 300.0), (120.0, 500.0)]):
+        fake_run(runs / f"hopper_{seed}", "gym:Hopper-v5", "root", seed, [10.0, hopper])
+        fake_run(runs / f"walker_{seed}", "walker_walk", "root", seed, [10.0, walker])
+    report, cells, text = report_of(tmp_path)
+    hopper = cells[("gym:Hopper-v5", "root")]
+    assert hopper["metric"] == "return" and hopper["mean"] == pytest.approx(103.0)
+    assert "gym:Hopper-v5,root,return,2," in (tmp_path / "r" / "report.csv").read_text()
+    # Hopper's returns have no known range: the aggregate is walker's returns / 1000 alone
+    assert report["aggregate_left_out"] == ["gym:Hopper-v5"]
+    [aggregate] = report["aggregate_iqm"]
+    assert aggregate["iqm"] == pytest.approx((0.3 + 0.5) / 2)
+    assert "Scored by return on gym:Hopper-v5, walker_walk." in text
+    assert "leaves out gym:Hopper-v5" in text
+
+
+def test_a_custom_task_is_scored_by_success_once_its_runs_record_one(tmp_path):
+    """The user's module is not importable where the report is made: it is never needed."""
+    runs = tmp_path / "runs"
+    for seed, success in enumerate([[0.0, 40.0], [20.0, 0.0]]):
+        fake_run(runs / f"reach_{seed}", "absent_pkg.envs:reach", "root", seed, [5.0, 9.0], success)
+        fake_run(runs / f"walk_{seed}", "absent_pkg.envs:walk", "root", seed, [5.0, 7.0 + seed])
+    report, cells, text = report_of(tmp_path)
+    reach, walk = cells[("absent_pkg.envs:reach", "root")], cells[("absent_pkg.envs:walk", "root")]
+    assert reach["metric"] == "success" and reach["mean"] == pytest.approx(20.0)
+    assert walk["metric"] == "return" and walk["mean"] == pytest.approx(7.5)
+    [aggregate] = report["aggregate_iqm"]  # success / 100 of both reach runs: 0.4 and 0.0
+    assert aggregate["iqm"] == pytest.approx(0.2)
+    assert report["aggregate_left_out"] == ["absent_pkg.envs:walk"]
+    assert "return on absent_pkg.envs:walk; success rate (%) on absent_pkg.envs:reach." in text
+
+
+def test_unfinished_runs_are_left_out_unless_asked_for_and_then_marked(tmp_path):
+    runs = tmp_path / "runs"
+    for seed, value in enumerate([300.0, 340.0]):
+        fake_run(runs / "walker" / f"root_{seed}", "walker_walk", "root", seed, [100.0, value])
+    fake_run(runs / "walker" / "root_2", "walker_walk", "root", 2, [100.0], finished=False)
+    report, cells, text = report_of(tmp_path)
+    root = cells[("walker_walk", "root")]
+    assert root["n"] == 2 and root["mean"] == pytest.approx(320.0) and root["partial"] == 0
+    assert report["left_out"] == [
+        {"run": "walker/root_2", "task": "walker_walk", "steps": 1000, "of": 2000}
+    ]
+    assert "Left out: 1 unfinished run" in text and "walker/root_2 (step 1,000 of 2,000)" in text
+
+    report, cells, text = report_of(tmp_path, "--include-unfinished")
+    root = cells[("walker_walk", "root")]
+    assert root["n"] == 3 and root["mean"] == pytest.approx((300.0 + 340.0 + 100.0) / 3)
+    assert report["left_out"] == [] and "Left out" not in text
+    assert "(n=3, 1 unfinished at step 1,000) |" in text
+    assert "| walker_walk | root (1 unfinished) |" in text  # the IQM table marks the method
+
+
+def test_a_folder_of_unfinished_runs_only_is_a_clear_error(tmp_path, capsys):
+    fake_run(tmp_path / "root_0", "walker_walk", "root", 0, [100.0], finished=False)
+    assert main(["report", str(tmp_path), "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert "none of its 1 runs has finished" in err and "--include-unfinished" in err
+
+
+def sweep_of_variants(runs, variants, true_finals, root_finals):
+    """Runs as a sweep plans them: every method, baselines included, once per variant."""
+    for variant, settings in variants.items():
+        for seed, (true, root) in enumerate(zip(true_finals, root_finals, strict=True)):
+            for method, reward, final in (("root", "learned", root), ("true", "true", true)):
+                name = f"{method}_{variant}_seed{seed}"
+                args = ("walker_walk", "root", seed, [100.0, final])
+                fake_run(runs / name, *args, reward=reward, **settings)
+            floor = ("walker_walk", "root", seed, [50.0, 60.0 + seed])
+            fake_run(runs / f"none_{variant}_seed{seed}", *floor, reward="none", **settings)
+
+
+def test_baselines_are_one_method_whatever_feedback_settings_the_variants_change(tmp_path):
+    variants = {
+        "a": dict(max_feedback=100, reward_ensemble=3, unsup_steps=900, segment_length=50),
+        "b": dict(max_feedback=200, reward_ensemble=5, unsup_steps=1800, segment_length=25),
+    }
+    sweep_of_variants(tmp_path / "runs", variants, [600.0, 640.0], [300.0, 330.0])
+    report, cells, text = report_of(tmp_path)
+    # the true-reward agent reads none of these: one column, one reference, each seed once
+    assert report["reference"] == "true-reward"
+    true = cells[("walker_walk", "true-reward")]
+    assert true["n"] == 2 and true["std"] == pytest.approx(np.std([600.0, 640.0], ddof=1))
+    learned = "root/max_feedback=100,reward_ensemble=3,segment_length=50,unsup_steps=900"
+    assert cells[("walker_walk", learned)]["relative"] == pytest.approx(315.0 / 620.0)
+    # a no-feedback run pre-trains, then follows its untrained ensemble: those settings count
+    assert [m for m in report["methods"] if m.startswith("no-feedback")] == [
+        "no-feedback/reward_ensemble=3,unsup_steps=900",
+        "no-feedback/reward_ensemble=5,unsup_steps=1800",
+    ]
+    header = next(line for line in text.splitlines() if line.startswith("| task |"))
+    assert header.count("true-reward") == 1
+    assert any(n.startswith("walker_walk: true-reward runs of a seed") for n in report["notes"])
+
+
+def test_a_baseline_run_once_per_variant_counts_each_seed_once(tmp_path):
+    variants = {"q100": dict(max_feedback=100), "q200": dict(max_feedback=200)}
+    sweep_of_variants(tmp_path / "runs", variants, [600.0, 640.0], [300.0, 330.0])
+    report, cells, text = report_of(tmp_path)
+    for method, finals in (("true-reward", [600.0, 640.0]), ("no-feedback", [60.0, 61.0])):
+        cell = cells[("walker_walk", method)]
+        assert cell["n"] == 2 and cell["mean"] == pytest.approx(np.mean(finals))
+        assert cell["std"] == pytest.approx(np.std(finals, ddof=1))
+    note = (
+        "walker_walk: true-reward runs of a seed alike in every setting it reads count once; "
+        "left out true_q200_seed0, true_q200_seed1"
+    )
+    assert note in report["notes"] and f"Note: {note}." in text

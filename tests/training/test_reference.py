@@ -94,3 +94,9 @@ def test_the_summary_shows_a_success_rate_only_where_the_task_has_one(tmp_path):
         "button-press": True, "block:place": True, "walker_walk": False,
         "dmc:cartpole_swingup": False,
     }  # fmt: skip
+    # a Gymnasium task has a success signal only if it records a success
+    for rate, expected in ((0.0, False), (40.0, True)):
+        text = io.StringIO()
+        hopper = {**summary, "task": "gym:Hopper-v5", "final_eval_success_rate": rate}
+        _print_summary(Console(file=text, width=120), hopper, SimpleNamespace(path=tmp_path))
+        assert ("final success rate" in text.getvalue()) is expected

@@ -16,8 +16,9 @@ def add_parser(commands: Any) -> None:
     report = commands.add_parser(
         "report",
         help="tables (mean ± std, IQM with CIs, probability of improvement) and plots of runs",
-        description="Read every run directory under RUNS_DIR (finished or not) and write "
-        "report.md, report.csv, report.json and PNG plots.",
+        description="Read every run directory under RUNS_DIR and write report.md, report.csv, "
+        "report.json and PNG plots of the finished ones (unfinished runs are named and left "
+        "out unless --include-unfinished).",
     )
     report.add_argument("runs_dir", type=Path)
     report.add_argument("--out", type=Path, help="(default: RUNS_DIR/report)")
@@ -26,16 +27,23 @@ def add_parser(commands: Any) -> None:
     )
     report.add_argument("--seed", type=seed_number, default=0, help="bootstrap seed (0)")
     report.add_argument("--no-plots", action="store_true")
+    report.add_argument(
+        "--include-unfinished",
+        action="store_true",
+        help="count runs without summary.json (stopped or still running) with their last "
+        "evaluation, marked in the tables",
+    )
     report.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_folder
-    from seqrank.report.report import build_report, format_markdown, write_report
+    from seqrank.report.markdown import format_markdown
+    from seqrank.report.report import build_report, write_report
 
     folder = args.out or args.runs_dir / "report"
     try:
-        report = build_report(args.runs_dir, args.bootstrap, args.seed)
+        report = build_report(args.runs_dir, args.bootstrap, args.seed, args.include_unfinished)
         check_folder(folder, "report folder")
     except ValueError as problem:
         raise UsageError(str(problem)) from None

@@ -245,7 +245,7 @@ def _train_with_progress(trainer: Any, config: TrainConfig, err: Console, quiet:
 
 
 def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
-    from seqrank.envs import canonical_task
+    from seqrank.envs.scoring import Metric, task_metric
 
     reward = RewardSignal(summary.get("reward", "learned"))
     method = (
@@ -265,8 +265,9 @@ def _print_summary(out: Console, summary: dict[str, Any], run: RunDir) -> None:
     ]
     if reward.asks and final is not None:
         rows += _reference_rows(summary, run)
-    if canonical_task(summary["task"])[0] != "dmc":  # DMControl has no success signal
-        rows.append(("final success rate", f"{summary['final_eval_success_rate']:.0f}%"))
+    success = summary["final_eval_success_rate"] or 0.0
+    if task_metric(summary["task"], [success]) is Metric.SUCCESS:  # as `seqrank report` scores
+        rows.append(("final success rate", f"{success:.0f}%"))
     rows += [
         ("feedback sessions", f"{summary['sessions']}"),
         ("questions asked", f"{summary['asked']}"),

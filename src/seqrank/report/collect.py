@@ -1,17 +1,20 @@
 """Read every run directory under a folder: settings, final scores, curves, feedback rows.
 
 Finished runs (with `summary.json`) and unfinished ones (metrics so far) are both read; an
-unfinished run reports its last evaluation and is marked partial.
+unfinished run reports its last evaluation (the report leaves it out unless asked). Each
+task's metric (`envs/scoring.py`) is decided once, from all its runs, so that every method
+of a task is scored alike.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from collections import defaultdict
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from seqrank.envs import canonical_task
+from seqrank.envs.scoring import Metric, normalizing_scale, task_metric
 from seqrank.rows import read_rows
 
 
@@ -33,31 +36,22 @@ class RunResult:
     curve: tuple[tuple[int, float, float], ...]  # (step, return, success %)
     feedback: tuple[dict[str, Any], ...]
     settings: dict[str, Any] = field(default_factory=dict, compare=False)  # its config.json
+    metric: Metric = Metric.RETURN  # its task's, set by `collect_runs`
 
     @property
     def baseline(self) -> bool:
         return self.reward != "learned"
 
     @property
-    def suite(self) -> str:
-        return canonical_task(self.task)[0]
-
-    @property
-    def metric(self) -> str:
-        """What the paper reports: return on DMControl, success rate on manipulation."""
-        return "return" if self.suite == "dmc" else "success"
-
-    @property
     def score(self) -> float | None:
-        return self.final_return if self.metric == "return" else self.final_success
+        return self.final_success if self.metric is Metric.SUCCESS else self.final_return
 
     @property
     def normalized(self) -> float | None:
-        """On a 0-1 scale across suites: DMControl returns / 1000, success rates / 100."""
-        score = self.score
-        if score is None:
-            return None
-        return score / 1000.0 if self.metric == "return" else score / 100.0
+        """On a 0-1 scale across tasks (success / 100, DMControl return / 1000); None for a
+        return whose range is not known."""
+        scale = normalizing_scale(self.task, self.metric)
+        return None if self.score is None or scale is None else self.score / scale
 
 
 def collect_runs(folder: Path) -> list[RunResult]:
@@ -102,4 +96,13 @@ def collect_runs(folder: Path) -> list[RunResult]:
         )
     if not results:
         raise ValueError(f"{folder} holds no run directories (no config.json of a seqrank run)")
-    return results
+    return with_task_metrics(results)
+
+
+def with_task_metrics(runs: list[RunResult]) -> list[RunResult]:
+    """The runs, each with its task's metric, decided from every run of that task."""
+    rates: dict[str, list[float]] = defaultdict(list)
+    for run in runs:
+        rates[run.task] += [success for _, _, success in run.curve]
+    metrics = {task: task_metric(task, values) for task, values in rates.items()}
+    return [replace(run, metric=metrics[run.task]) for run in runs]

@@ -3,7 +3,9 @@
 A folder can hold runs of one method made with other settings (a sweep's variants, a run
 made by hand with more feedback, a sweep file changed between runs). Their scores are not
 pooled silently: each setting in which a cell's runs differ joins their method name
-(`sequential/max_feedback=100`), and the report says so in a note.
+(`sequential/max_feedback=100`), and the report says so in a note. A baseline's runs differ
+only in the settings it reads (`config.unread_settings`): a sweep's variants of feedback
+settings give one true-reward method, and a seed it ran once per variant counts once.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from seqrank.choices import RewardSignal
+from seqrank.config import unread_settings
 from seqrank.report.collect import RunResult
 
 # settings that do not change what a run learns, or are already in the method's name
@@ -32,37 +36,8 @@ SAME_METHOD = {
     "reward_learner",
     "warm_start",
 }
-# settings a baseline run (which asks no questions) never uses
-FEEDBACK_ONLY = {
-    "selection",
-    "oversample",
-    "max_feedback",
-    "reward_batch",
-    "feedback_frequency",
-    "segment_length",
-    "episodes_kept",
-    "query_episodes",
-    "hybrid_replay",
-    "hybrid_episodes",
-    "meta_update_frequency",
-    "meta_loss_weight",
-    "augment",
-    "recheck_gain",
-    "recheck_twice_gain",
-    "path_unchecked",
-    "reward_learner",
-    "surf_threshold",
-    "surf_unlabelled_ratio",
-    "surf_unlabelled_batch",
-    "surf_loss_weight",
-    "surf_crop",
-    "rime_alpha",
-    "rime_beta_max",
-    "rime_beta_min",
-    "rime_decay_updates",
-    "rime_tau_upper",
-    "rime_min_epochs",
-}
+# settings that mark a learned method's name (`+warm`) but not a baseline's
+NAME_MARKS = {"augment", "reward_learner", "warm_start"}
 # settings only one reward learner reads: runs of another learner may hold any value (or,
 # made before the setting existed, none)
 LEARNER_PREFIXES = {"surf": "surf_", "rime": "rime_"}
@@ -95,7 +70,7 @@ def split_by_settings(
 
 
 def _differing(members: list[RunResult]) -> list[str]:
-    ignored = SAME_METHOD | (FEEDBACK_ONLY if members[0].baseline else set())
+    ignored = set(_never_splitting(members[0]))  # a copy: it grows below
     learner = members[0].settings.get("reward_learner", "plain")  # one per cell
     ignored |= {
         key
@@ -108,6 +83,39 @@ def _differing(members: list[RunResult]) -> list[str]:
         ignored |= CHECKED_ONLY
     keys = {key for run in members for key in run.settings} - ignored
     return sorted(k for k in keys if len({repr(run.settings.get(k)) for run in members}) > 1)
+
+
+def _never_splitting(run: RunResult) -> set[str]:
+    """The settings that never split the cell of `run`: for a baseline, also those it never
+    reads, but not the marks its name does not carry (a no-feedback warm start does)."""
+    if not run.baseline:
+        return SAME_METHOD
+    warm = bool(run.settings.get("warm_start"))
+    return (SAME_METHOD - NAME_MARKS) | unread_settings(RewardSignal(run.reward), warm)
+
+
+def one_run_per_seed(
+    runs: list[RunResult], names: dict[Path, str]
+) -> tuple[list[RunResult], list[str]]:
+    """The runs with one baseline run per task, method and seed, and a note per method that
+    had more: runs alike in every setting a baseline reads (a sweep ran it once per variant)
+    are one measurement, not more seeds."""
+    alike: dict[tuple[str, str, int], list[RunResult]] = defaultdict(list)
+    for run in runs:
+        if run.baseline:
+            alike[(run.task, names[run.path], run.seed)].append(run)
+    repeats: dict[tuple[str, str], list[RunResult]] = defaultdict(list)
+    for (task, name, _), members in sorted(alike.items()):
+        members.sort(key=lambda r: (not r.finished, -r.steps, str(r.path)))
+        repeats[(task, name)] += members[1:]
+    dropped = {run.path for members in repeats.values() for run in members}
+    notes = [
+        f"{task}: {name} runs of a seed alike in every setting it reads count once; left "
+        "out " + ", ".join(run.path.name for run in members)
+        for (task, name), members in repeats.items()
+        if members
+    ]
+    return [run for run in runs if run.path not in dropped], notes
 
 
 def _text(value: Any) -> str:

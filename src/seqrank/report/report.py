@@ -5,7 +5,9 @@ name (`root/mrn/mistake/small`), and runs of one task and method that differ in 
 setting are kept apart, with the settings in their name and a note (`report/groups.py`).
 Baseline runs (`--reward true` or `none`) are the methods `true-reward` and `no-feedback`;
 with a true-reward run in the folder, every curve shows it as a reference line and every
-method's score is also given relative to it. Outputs in
+method's score is also given relative to it. A task is scored by success rate where it has
+a success signal, by return elsewhere (`envs/scoring.py`); unfinished runs are left out
+unless `include_unfinished` (and named). Outputs in
 `--out` (default RUNS_DIR/report): `report.md`, `report.csv` (one row per task and method),
 `report.json`, `curves_<task>.png` and `feedback_<task>.png`.
 """
@@ -15,7 +17,7 @@ from __future__ import annotations
 import csv
 import json
 from collections import defaultdict
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from itertools import permutations
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,8 @@ import numpy as np
 
 from seqrank.choices import RewardSignal
 from seqrank.report.collect import RunResult, collect_runs
-from seqrank.report.groups import split_by_settings
+from seqrank.report.groups import one_run_per_seed, split_by_settings
+from seqrank.report.markdown import format_markdown
 from seqrank.report.stats import (
     Scores,
     iqm,
@@ -37,7 +40,7 @@ SCHEME_ORDER = ("pairwise", "sequential", "root", "ranked")
 TRUE_REWARD = RewardSignal.TRUE.method
 BASELINE_ORDER = (RewardSignal.NONE.method, TRUE_REWARD)
 Cells = dict[tuple[str, str], list[RunResult]]  # (task, method) -> its runs with a score
-Normalized = Mapping[str, Scores]  # method -> task -> normalized scores
+PerMethod = Mapping[str, Scores]  # method -> task -> a score of each of its runs
 
 
 def method_names(runs: list[RunResult]) -> dict[Path, str]:
@@ -96,42 +99,81 @@ def reference_method(methods: list[str]) -> str | None:
     return references[0] if len(references) == 1 else None
 
 
-def build_report(folder: Path, repetitions: int = 2000, seed: int = 0) -> dict[str, Any]:
+def build_report(
+    folder: Path, repetitions: int = 2000, seed: int = 0, include_unfinished: bool = False
+) -> dict[str, Any]:
     runs = collect_runs(folder)
-    names, notes = split_by_settings(runs, method_names(runs))
+    counted, left_out = counted_runs(runs, include_unfinished, folder)
+    names, notes = split_by_settings(counted, method_names(counted))
+    counted, repeats = one_run_per_seed(counted, names)
     rng = np.random.default_rng(seed)
-    tasks = sorted({r.task for r in runs})
-    methods = _order(set(names.values()))
+    tasks = sorted({r.task for r in counted})
+    methods = _order({names[r.path] for r in counted})
     cells: Cells = defaultdict(list)
-    for run in runs:
+    for run in counted:
         if run.score is not None:
             cells[(run.task, names[run.path])].append(run)
     table = _task_table(cells, tasks, methods, repetitions, rng)
     reference = reference_method(methods)
     if reference is not None:
         _add_relative(table, cells, reference, repetitions, rng)
-    normalized = {
-        method: {
-            task: np.array([r.normalized for r in cells[(task, method)]], np.float64)
-            for task in tasks
-            if cells.get((task, method))
-        }
-        for method in methods
-    }
+    normalized = _per_method(cells, tasks, methods, lambda r: r.normalized)
+    unscaled = sorted({r.task for r in counted if r.score is not None and r.normalized is None})
     return {
         "folder": str(folder),
         "runs": len(runs),
         "finished": sum(r.finished for r in runs),
+        "counted": len(counted),
+        "include_unfinished": include_unfinished,
+        "left_out": [_left_out(run, folder) for run in left_out],
         "tasks": tasks,
         "methods": methods,
         "reference": reference,
         "table": table,
         "aggregate_iqm": _aggregate(normalized, methods, repetitions, rng),
-        "probability_of_improvement": _improvement(normalized, methods, repetitions, rng),
+        "aggregate_left_out": unscaled,
+        "probability_of_improvement": _improvement(
+            _per_method(cells, tasks, methods, lambda r: r.score), methods, repetitions, rng
+        ),
         "bootstrap": {"repetitions": repetitions, "seed": seed},
-        "notes": notes,
-        "_runs": runs,
+        "notes": notes + repeats,
+        "_runs": counted,
         "_names": names,
+    }
+
+
+def counted_runs(
+    runs: list[RunResult], include_unfinished: bool, folder: Path
+) -> tuple[list[RunResult], list[RunResult]]:
+    """The runs the tables count and those left out: an unfinished run's last evaluation
+    is of fewer steps than the others', so it is counted only when asked for."""
+    if include_unfinished:
+        return runs, []
+    counted = [r for r in runs if r.finished]
+    if not counted:
+        raise ValueError(
+            f"{folder}: none of its {len(runs)} runs has finished (no summary.json); "
+            "--include-unfinished reports them with their last evaluation"
+        )
+    return counted, [r for r in runs if not r.finished]
+
+
+def _left_out(run: RunResult, folder: Path) -> dict[str, Any]:
+    where = run.path.relative_to(folder) if run.path.is_relative_to(folder) else run.path
+    return {"run": str(where), "task": run.task, "steps": run.steps, "of": run.total_steps}
+
+
+def _per_method(
+    cells: Cells, tasks: list[str], methods: list[str], value: Callable[[RunResult], float | None]
+) -> PerMethod:
+    """method -> task -> each run's `value`, for the tasks where it has one."""
+    return {
+        method: {
+            task: np.array([value(r) for r in cells[(task, method)]], np.float64)
+            for task in tasks
+            if cells.get((task, method)) and value(cells[(task, method)][0]) is not None
+        }
+        for method in methods
     }
 
 
@@ -196,7 +238,7 @@ def iqm_ratio(x: Scores, y: Scores) -> float:
 
 
 def _aggregate(
-    normalized: Normalized, methods: list[str], repetitions: int, rng: np.random.Generator
+    normalized: PerMethod, methods: list[str], repetitions: int, rng: np.random.Generator
 ) -> list[dict[str, Any]]:
     """Per method, the IQM of normalized scores pooled over tasks, with its bootstrap CI."""
     aggregate = []
@@ -211,12 +253,13 @@ def _aggregate(
 
 
 def _improvement(
-    normalized: Normalized, methods: list[str], repetitions: int, rng: np.random.Generator
+    scores: PerMethod, methods: list[str], repetitions: int, rng: np.random.Generator
 ) -> list[dict[str, Any]]:
-    """P(X > Y) for every ordered pair of methods sharing a task, with its bootstrap CI."""
+    """P(X > Y) for every ordered pair of methods sharing a task, with its bootstrap CI (task
+    by task, so on each task's own scale)."""
     improvement = []
     for a, b in permutations(methods, 2):
-        x, y = normalized[a], normalized[b]
+        x, y = scores[a], scores[b]
         if not any(t in y for t in x):
             continue
         low, high = stratified_bootstrap_ci(probability_of_improvement, (x, y), repetitions, rng)
@@ -228,89 +271,6 @@ def _improvement(
 
 def iqm_of(scores: dict[str, np.ndarray]) -> float:
     return pooled_iqm(scores)
-
-
-def format_markdown(report: dict[str, Any]) -> str:
-    methods, tasks = report["methods"], report["tasks"]
-    cell = {(row["task"], row["method"]): row for row in report["table"]}
-    lines = [
-        f"# Report: {report['folder']}",
-        "",
-        f"{report['runs']} runs ({report['finished']} finished; partial runs count with their "
-        "last evaluation). Return on DMControl, success rate (%) on Meta-World and block:place;",
-        "mean ± sample std over seeds (n), as in the paper's Tables 5-7.",
-        *(f"Note: {note}." for note in report.get("notes", [])),
-        "",
-        "| task | " + " | ".join(methods) + " |",
-        "|---|" + "---|" * len(methods),
-    ]
-    for task in tasks:
-        row = [task]
-        for method in methods:
-            c = cell.get((task, method))
-            if c is None:
-                row.append("-")
-                continue
-            std = "" if c["std"] is None else f" ± {c['std']:.1f}"
-            partial = f", {c['partial']} partial at step {c['steps']:,}" if c["partial"] else ""
-            row.append(f"{c['mean']:.1f}{std} (n={c['n']}{partial})")
-        lines.append("| " + " | ".join(row) + " |")
-    lines += [
-        "",
-        "IQM per task with 95% bootstrap CI (runs resampled):",
-        "",
-        "| task | method | IQM | 95% CI |",
-        "|---|---|---|---|",
-    ]
-    for c in report["table"]:
-        lines.append(
-            f"| {c['task']} | {c['method']} | {c['iqm']:.1f} | [{c['iqm_low']:.1f}, "
-            f"{c['iqm_high']:.1f}] |"
-        )
-    lines += _relative_lines(report)
-    lines += [
-        "",
-        "Aggregate IQM of normalized scores (DMControl return / 1000, success rate / 100) over "
-        "all tasks, 95% stratified bootstrap CI:",
-        "",
-        "| method | IQM | 95% CI |",
-        "|---|---|---|",
-    ]
-    for a in report["aggregate_iqm"]:
-        lines.append(f"| {a['method']} | {a['iqm']:.3f} | [{a['low']:.3f}, {a['high']:.3f}] |")
-    lines += [
-        "",
-        "Probability of improvement P(X > Y), averaged over tasks, 95% stratified bootstrap CI:",
-        "",
-        "| X | Y | P(X > Y) | 95% CI |",
-        "|---|---|---|---|",
-    ]
-    for p in report["probability_of_improvement"]:
-        lines.append(f"| {p['x']} | {p['y']} | {p['p']:.2f} | [{p['low']:.2f}, {p['high']:.2f}] |")
-    boot = report["bootstrap"]
-    lines += ["", f"Bootstrap: {boot['repetitions']} resamples, seed {boot['seed']}."]
-    return "\n".join(lines) + "\n"
-
-
-def _relative_lines(report: dict[str, Any]) -> list[str]:
-    reference = report["reference"]
-    rows = [c for c in report["table"] if c.get("relative") is not None]
-    if reference is None or not rows:
-        return []
-    lines = [
-        "",
-        f"Score relative to the true-reward agent ({reference}): IQM / its IQM on the same "
-        "task, 95% bootstrap CI (both resampled):",
-        "",
-        "| task | method | relative score | 95% CI |",
-        "|---|---|---|---|",
-    ]
-    for c in rows:
-        lines.append(
-            f"| {c['task']} | {c['method']} | {c['relative']:.2f} | [{c['relative_low']:.2f}, "
-            f"{c['relative_high']:.2f}] |"
-        )
-    return lines
 
 
 def write_report(report: dict[str, Any], out: Path, plots: bool = True) -> list[Path]:
