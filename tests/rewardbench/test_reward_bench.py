@@ -238,11 +238,13 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
 
 
 def test_a_teacher_keeps_its_knobs_in_the_teacher_list():
-    from seqrank.cli.reward_bench import _teachers
+    from seqrank.cli.reward_bench import teacher_list
 
-    assert _teachers("mistake,eps_mistake=0.2,oracle") == ["mistake,eps_mistake=0.2", "oracle"]
-    assert _teachers("beta=1,gamma=0.95") == ["beta=1,gamma=0.95"]
-    assert _teachers("oracle, noisy") == ["oracle", "noisy"]
+    assert teacher_list("mistake,eps_mistake=0.2,oracle") == ["mistake,eps_mistake=0.2", "oracle"]
+    assert teacher_list("beta=1,gamma=0.95") == ["beta=1,gamma=0.95"]
+    assert teacher_list("oracle, noisy") == ["oracle", "noisy"]
+    # ';' separates what commas cannot: knobs alone, after another teacher
+    assert teacher_list("oracle;beta=1,gamma=0.95") == ["oracle", "beta=1,gamma=0.95"]
 
 
 @pytest.mark.parametrize(

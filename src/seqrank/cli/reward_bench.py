@@ -37,18 +37,14 @@ def _budgets(text: str) -> list[int]:
     return values
 
 
-def _teachers(text: str) -> list[str]:
-    """Teachers, comma-separated; a `knob=value` part belongs to the teacher before it, so
-    `mistake,eps_mistake=0.2,oracle` is two teachers (knobs first: changes to the oracle)."""
-    teachers: list[str] = []
-    for part in (p.strip() for p in text.split(",")):
-        if not part:
-            raise argparse.ArgumentTypeError(f"{text!r}: an empty teacher between commas")
-        if "=" in part and teachers:
-            teachers[-1] += f",{part}"
-        else:
-            teachers.append(part)
-    return teachers
+def teacher_list(text: str) -> list[str]:
+    """`--teachers`: the shared list syntax of `split_teachers` (`seqrank simulate`'s too)."""
+    from seqrank.feedback.teachers import split_teachers
+
+    try:
+        return split_teachers(text)
+    except ValueError as problem:
+        raise argparse.ArgumentTypeError(str(problem)) from None
 
 
 def add_parser(commands: Any) -> None:
@@ -117,11 +113,12 @@ def _add_grid(actions: Any) -> None:
     )
     grid.add_argument(
         "--teachers",
-        type=_teachers,
+        type=teacher_list,
         default=["oracle"],
-        help="scripted teachers, comma-separated: presets (oracle, mistake, noisy, skip, "
-        "myopic, equal), each optionally followed by its knobs, e.g. "
-        "oracle,mistake,eps_mistake=0.2 (oracle)",
+        help="scripted teachers: presets (oracle, mistake, noisy, skip, myopic, equal), "
+        "each optionally followed by its knobs, comma-separated: a knob=value part belongs "
+        "to the teacher before it, e.g. oracle,mistake,eps_mistake=0.2; ';' also separates "
+        "teachers, e.g. 'oracle;beta=1' (oracle)",
     )
     grid.add_argument(
         "--learners",
