@@ -25,7 +25,7 @@ import numpy as np
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.schemes import get_scheme, uniform_choice
-from seqrank.feedback.teachers import ScriptedTeacher, teacher_preset
+from seqrank.feedback.teachers import ScriptedTeacher, scripted_config
 from seqrank.types import Answer, AnsweredQuestion
 
 SEGMENT_LENGTH = 50
@@ -125,8 +125,10 @@ def simulate_cell(
     augment_name: str = "full",
     checking: Recheck | None = None,
 ) -> CellResult:
-    """`checking` sets `augment checked`'s re-checks and trusted paths (default Recheck())."""
-    teacher = ScriptedTeacher(teacher_preset(teacher_name))
+    """`teacher_name`: a scripted teacher as `--teacher` takes it (a preset, optionally with
+    knobs: `mistake,eps_mistake=0.2`); `checking` sets `augment checked`'s re-checks and
+    trusted paths (default Recheck())."""
+    teacher = ScriptedTeacher(scripted_config(teacher_name))
     recheck = None if augment_name == "full" else checking or Recheck()
     stats = run_sessions(scheme, teacher, questions, sessions, rng, recheck)
     ppq = np.array([s.pairs_per_question for s in stats])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from seqrank.cli import main
+from seqrank.episodes import Episode
 from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, heldout_measures, run_cell
 from seqrank.rewardbench.grid import read_rows, run_grid
 from seqrank.rewardbench.pool import (
@@ -41,8 +42,8 @@ def synthetic_pool(episodes: int = 16, length: int = 100, seed: int = 0) -> Pool
     obs = rng.normal(size=(episodes, length, 3)).astype(np.float32)
     obs[:, :, 0] += np.linspace(-1.0, 1.0, episodes)[:, None]
     action = rng.uniform(-1, 1, size=(episodes, length, 1)).astype(np.float32)
-    origin = np.arange(episodes)
-    return Pool("dmc:cartpole_swingup", obs, action, obs[:, :, 0].copy(), origin, {"note": "t"})
+    trained = [Episode(obs[e], action[e], obs[e, :, 0].copy()) for e in range(episodes)]
+    return pool_from_episodes("dmc:cartpole_swingup", trained, 0, [], {"note": "t"})
 
 
 @pytest.fixture(scope="module")
@@ -237,11 +238,13 @@ def test_the_command_runs_the_grid_and_prints_the_table(pool_file, tmp_path, cap
 
 
 def test_a_teacher_keeps_its_knobs_in_the_teacher_list():
-    from seqrank.cli.reward_bench import _teachers
+    from seqrank.cli.reward_bench import teacher_list
 
-    assert _teachers("mistake,eps_mistake=0.2,oracle") == ["mistake,eps_mistake=0.2", "oracle"]
-    assert _teachers("beta=1,gamma=0.95") == ["beta=1,gamma=0.95"]
-    assert _teachers("oracle, noisy") == ["oracle", "noisy"]
+    assert teacher_list("mistake,eps_mistake=0.2,oracle") == ["mistake,eps_mistake=0.2", "oracle"]
+    assert teacher_list("beta=1,gamma=0.95") == ["beta=1,gamma=0.95"]
+    assert teacher_list("oracle, noisy") == ["oracle", "noisy"]
+    # ';' separates what commas cannot: knobs alone, after another teacher
+    assert teacher_list("oracle;beta=1,gamma=0.95") == ["oracle", "beta=1,gamma=0.95"]
 
 
 @pytest.mark.parametrize(

@@ -1,26 +1,49 @@
-"""The reward benchmark's summary and effects: means and t-intervals per scheme and
-budget, each method against plain seed by seed, and `reward-bench report`."""
+"""The reward benchmark's summary and effects: means and 95% intervals (within each
+measure's range) per scheme and budget, each method against plain seed by seed, and
+`reward-bench report`."""
 
 from __future__ import annotations
 
 import json
+import math
+import re
 
-import numpy as np
 import pytest
 
 from seqrank.cli import main
+from seqrank.rewardbench.intervals import bounded_interval
 from seqrank.rewardbench.summary import (
     format_effects,
-    interval,
     paired_effects,
     summarise,
 )
 
+T_97_5 = {1: 12.706204736, 2: 4.302652730}  # Student's t, 97.5%, by degrees of freedom
 
-def test_the_summary_has_a_mean_and_t_interval_per_scheme_and_budget():
-    assert interval([1.0]) == (1.0, 1.0, 1.0)
-    mean, _, high = interval([1.0, 2.0, 3.0])
-    assert mean == 2.0 and high - mean == pytest.approx(4.303 / np.sqrt(3), rel=1e-3)
+
+def _logit_interval(values, low, high):
+    """By hand: a t-interval on the logit of each value's place in [low, high], mapped back."""
+    logits = [math.log((v - low) / (high - v)) for v in values]
+    n, mean = len(values), sum(logits) / len(values)
+    sd = math.sqrt(sum((z - mean) ** 2 for z in logits) / (n - 1))
+    half = T_97_5[n - 1] * sd / math.sqrt(n)
+    back = [low + (high - low) / (1 + math.exp(-z)) for z in (mean - half, mean + half)]
+    return sum(values) / n, back[0], back[1]
+
+
+def test_the_interval_is_a_t_interval_on_the_logit_scale_within_the_range():
+    assert bounded_interval([0.6, 0.7, 0.8], 0, 1) == pytest.approx(
+        _logit_interval([0.6, 0.7, 0.8], 0, 1)
+    )
+    # a correlation: the logit of (1 + r) / 2 is twice Fisher's z
+    assert bounded_interval([0.2, 0.9], -1, 1) == pytest.approx(_logit_interval([0.2, 0.9], -1, 1))
+    assert bounded_interval([0.7], 0, 1) == (0.7, None, None)  # one seed: no interval
+    assert bounded_interval([1.0, 1.0], 0, 1) == (1.0, 1.0, 1.0)  # the seeds agree
+    mean, low, high = bounded_interval([0.9, 1.0], 0, 1)  # 1 is taken as 0.999
+    assert 0 <= low < mean < high <= 1
+
+
+def test_the_summary_has_a_mean_and_interval_per_scheme_and_budget():
     rows = [
         {
             "task": "t",
@@ -67,9 +90,9 @@ def test_each_method_is_compared_with_plain_seed_by_seed():
     [effect] = paired_effects(effect_rows([0.02, 0.03, 0.04]))
     # three pairs (the baseline's fourth seed has no partner); the seeds' spread cancels
     assert (effect["method"], effect["baseline"], effect["seeds"]) == ("rime", "plain", 3)
-    mean, _, high = effect["accuracy_difference"]
-    assert mean == pytest.approx(0.03)
-    assert high - mean == pytest.approx(0.01 * 4.303 / 3**0.5, rel=1e-3)  # t(2) 97.5%
+    assert effect["accuracy_difference"] == pytest.approx(
+        _logit_interval([0.02, 0.03, 0.04], -1, 1)
+    )
     assert effect["spearman_difference"][0] == pytest.approx(0.03)
     assert (effect["inferred_wrong"], effect["baseline_inferred_wrong"]) == pytest.approx(
         (0.1, 0.3)
@@ -143,3 +166,32 @@ def test_the_report_action_rewrites_a_folders_table_and_effects(tmp_path, capsys
     (folder / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in [*rows, rows[0]]))
     assert main(["reward-bench", "report", str(folder)]) == 2
     assert "two rows of plain for task t, teacher mistake" in capsys.readouterr().err
+
+
+def test_intervals_of_two_seeds_stay_in_range_and_one_seed_prints_none(tmp_path, capsys):
+    """Two seeds (t with 1 degree of freedom: 12.7 standard errors) near the top of the
+    range, and a budget with one seed; rime beside plain for effects.md."""
+    common = {"task": "t", "teacher": "oracle", "scheme": "root", "inferred_wrong": None}
+    rows = []
+    for seed, (plain, rime) in enumerate([(0.3, 0.8), (0.05, 0.95)]):
+        for learner, accuracy in (("plain", plain), ("rime", rime)):
+            row = {**common, "seed": seed, "questions": 10, "pairs": 10, "learner": learner}
+            rows.append({**row, "accuracy": accuracy, "spearman": accuracy})
+    rows.append({**rows[0], "questions": 20, "seed": 0})  # one seed of plain at 20
+    folder = tmp_path / "grid"
+    folder.mkdir()
+    (folder / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["reward-bench", "report", str(folder)]) == 0
+    table = (folder / "table.md").read_text()
+    interval = re.compile(r"([-\d.]+) \[([-\d.]+), ([-\d.]+)\]")
+    for line in table.splitlines()[2:]:
+        columns = line.split("|")
+        for column, bottom in ((8, 0.0), (9, -1.0)):  # accuracy in [0, 1], Spearman [-1, 1]
+            for mean, low, high in interval.findall(columns[column]):
+                assert bottom <= float(low) <= float(mean) <= float(high) <= 1, line
+    assert "| t | oracle | plain | 20 | root | 1 | 10 | 0.300 (n=1) | 0.300 (n=1) |" in table
+    low, high = _logit_interval([0.3, 0.05], -1, 1)[1:]
+    assert f"| 0.175 [{low:.3f}, {high:.3f}] |" in table  # plain's Spearman at 10
+    effects = (folder / "effects.md").read_text()
+    [matrix] = re.findall(r"\| root \| \+0\.700 \[([-+\d.]+), ([-+\d.]+)\]", effects)
+    assert -1 <= float(matrix[0]) < 0.7 < float(matrix[1]) <= 1  # differences lie in [-1, 1]

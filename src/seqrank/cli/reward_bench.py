@@ -7,7 +7,7 @@ import argparse
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -17,6 +17,9 @@ from seqrank.cli.options import int_between, names, positive, seed_number
 from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
+
+if TYPE_CHECKING:
+    from seqrank.training.launch import Started
 
 SCHEMES = [s.value for s in SchemeName]
 LEARNERS = [learner.value for learner in RewardLearner]
@@ -34,18 +37,14 @@ def _budgets(text: str) -> list[int]:
     return values
 
 
-def _teachers(text: str) -> list[str]:
-    """Teachers, comma-separated; a `knob=value` part belongs to the teacher before it, so
-    `mistake,eps_mistake=0.2,oracle` is two teachers (knobs first: changes to the oracle)."""
-    teachers: list[str] = []
-    for part in (p.strip() for p in text.split(",")):
-        if not part:
-            raise argparse.ArgumentTypeError(f"{text!r}: an empty teacher between commas")
-        if "=" in part and teachers:
-            teachers[-1] += f",{part}"
-        else:
-            teachers.append(part)
-    return teachers
+def teacher_list(text: str) -> list[str]:
+    """`--teachers`: the shared list syntax of `split_teachers` (`seqrank simulate`'s too)."""
+    from seqrank.feedback.teachers import split_teachers
+
+    try:
+        return split_teachers(text)
+    except ValueError as problem:
+        raise argparse.ArgumentTypeError(str(problem)) from None
 
 
 def add_parser(commands: Any) -> None:
@@ -114,11 +113,12 @@ def _add_grid(actions: Any) -> None:
     )
     grid.add_argument(
         "--teachers",
-        type=_teachers,
+        type=teacher_list,
         default=["oracle"],
-        help="scripted teachers, comma-separated: presets (oracle, mistake, noisy, skip, "
-        "myopic, equal), each optionally followed by its knobs, e.g. "
-        "oracle,mistake,eps_mistake=0.2 (oracle)",
+        help="scripted teachers: presets (oracle, mistake, noisy, skip, myopic, equal), "
+        "each optionally followed by its knobs, comma-separated: a knob=value part belongs "
+        "to the teacher before it, e.g. oracle,mistake,eps_mistake=0.2; ';' also separates "
+        "teachers, e.g. 'oracle;beta=1' (oracle)",
     )
     grid.add_argument(
         "--learners",
@@ -185,17 +185,25 @@ def _add_score(actions: Any) -> None:
 
 
 def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
+    """Only the checks of the input run under `UsageError`: a fault in training or in
+    building the pool is the code's, and surfaces as a traceback."""
     from seqrank.dirs import check_file
-    from seqrank.rewardbench.pool import pool_from_run, save_pool
+    from seqrank.rewardbench.pool import kept_episodes, pool_from_kept, save_pool
 
     try:
         check_file(args.out, "pool file")
         if args.until_step is not None and args.from_run is None:
             raise ValueError("--until-step takes part of a run given with --from-run")
-        run_path = args.from_run or _train_for_pool(args, err)
-        pool = pool_from_run(run_path, args.random_episodes, args.seed, args.until_step)
+        started = None if args.from_run is not None else _start_pool_run(args)
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
+    run_path = args.from_run if started is None else _train_for_pool(started, args, err)
+    try:
+        kept = kept_episodes(run_path, args.until_step)
+        kept.check_size(args.random_episodes)
+    except (ValueError, FileNotFoundError) as problem:
+        raise UsageError(str(problem)) from None
+    pool = pool_from_kept(kept, args.random_episodes, args.seed)
     save_pool(pool, args.out)
     returns = pool.returns
     out.print(
@@ -206,16 +214,21 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
-def _train_for_pool(args: argparse.Namespace, err: Console) -> Path:
-    """A true-reward run that keeps every episode (in `<out>.run/`)."""
+def _start_pool_run(args: argparse.Namespace) -> Started:
+    """The true-reward run that keeps every episode (in `<out>.run/`), made or continued:
+    a bad --task or a folder of another run is a ValueError."""
     from seqrank.config import resolve_config
     from seqrank.training.launch import open_or_start
     from seqrank.training.trainer import Trainer
 
-    folder = args.out.with_suffix(".run")
     settings = {"reward": "true", "steps": args.steps, "seed": args.seed, "device": "cpu"}
     config = resolve_config(args.task, "small", {**settings, "episodes_kept": args.steps})
-    started = open_or_start(folder, config, "cpu", Trainer)
+    return open_or_start(args.out.with_suffix(".run"), config, "cpu", Trainer)
+
+
+def _train_for_pool(started: Started, args: argparse.Namespace, err: Console) -> Path:
+    """The pool run trained to its end; its folder."""
+    folder = args.out.with_suffix(".run")
     try:
         if started.finished:
             return folder
@@ -249,9 +262,11 @@ def _check_scripted(teachers: list[str]) -> None:
 
 
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
+    """The input (pools, folder, teachers, settings) is checked before anything is written
+    or run; a cell that fails afterwards is a fault of the code: a traceback, not exit 2."""
     from seqrank.dirs import check_folder
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
-    from seqrank.rewardbench.grid import run_grid as grid
+    from seqrank.rewardbench.grid import open_grid
     from seqrank.rewardbench.pool import load_pool
 
     try:
@@ -265,36 +280,34 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             heldout_segments=args.heldout_segments,
             net=RewardNet(epochs=args.reward_epochs),
         )
-        with Progress(
-            TextColumn("[bold]cells"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            console=err,
-        ) as progress:
-            bar = progress.add_task("cells", total=None)
-            started = time.monotonic()
-
-            def report(done: int, total: int) -> None:
-                progress.update(bar, completed=done, total=total)
-                if not err.is_terminal:  # piped output (logs) gets no live bar: a line a cell
-                    elapsed = time.monotonic() - started
-                    err.print(f"cells {done}/{total} ({elapsed / 60:.1f} min)", highlight=False)
-
-            rows = grid(
-                args.pool,
-                args.schemes,
-                args.teachers,
-                list(range(args.seeds)),
-                settings,
-                args.out,
-                args.workers,
-                report,
-                learners=args.learners,
-                augments=args.augments,
-            )
+        grid = open_grid(args.pool, settings, args.out)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    with Progress(
+        TextColumn("[bold]cells"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err,
+    ) as progress:
+        bar = progress.add_task("cells", total=None)
+        started = time.monotonic()
+
+        def report(done: int, total: int) -> None:
+            progress.update(bar, completed=done, total=total)
+            if not err.is_terminal:  # piped output (logs) gets no live bar: a line a cell
+                elapsed = time.monotonic() - started
+                err.print(f"cells {done}/{total} ({elapsed / 60:.1f} min)", highlight=False)
+
+        rows = grid.run(
+            args.schemes,
+            args.teachers,
+            list(range(args.seeds)),
+            args.workers,
+            report,
+            learners=args.learners,
+            augments=args.augments,
+        )
     try:
         write_report(rows, args.out, "plain", out)
     except ValueError as problem:  # two rows of one cell (a folder merged by hand)
@@ -307,7 +320,7 @@ def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.rewardbench.bench import BenchSettings, Cell, run_cell
     from seqrank.rewardbench.pool import load_pool
 
-    try:
+    try:  # the input's checks; scoring itself is the code's (a fault is a traceback)
         pool = load_pool(args.pool)
         source = ReplaySource.from_file(args.labels)
         source.check_compatible(pool.task, pool.obs.shape[2], pool.action.shape[2])
@@ -316,9 +329,9 @@ def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
         budgets = tuple(int(sum(sizes[: k + 1])) for k in range(len(sizes)))
         settings = BenchSettings(budgets, max(sizes))
         scheme = source.labels.answers[0]["scheme"]
-        rows = run_cell(pool, Cell(scheme, "replay", args.seed), settings, source)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    rows = run_cell(pool, Cell(scheme, "replay", args.seed), settings, source)
     for row in rows:
         wrong = "-" if row["inferred_wrong"] is None else f"{row['inferred_wrong']:.3f}"
         out.print(

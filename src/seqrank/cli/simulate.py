@@ -12,10 +12,11 @@ from rich.console import Console
 
 from seqrank import console_tables
 from seqrank.cli.options import int_between, names, seed_number
+from seqrank.cli.reward_bench import teacher_list
 from seqrank.errors import UsageError
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SCHEMES
-from seqrank.feedback.teachers import TEACHER_PRESETS
+from seqrank.feedback.teachers import TEACHER_PRESETS, scripted_config
 from seqrank.simulate import AUGMENTS, simulate
 
 # Recheck fields that a run's loop sets, not the user: left out of the printed settings
@@ -46,9 +47,13 @@ def add_parser(commands: Any) -> None:
     )
     sim.add_argument(
         "--teachers",
-        type=names(list(TEACHER_PRESETS), "teacher preset"),
+        type=teacher_list,
         default=list(TEACHER_PRESETS),
-        help=f"comma-separated, from: {', '.join(TEACHER_PRESETS)} (default: all)",
+        help=f"scripted teachers, as --teacher of `seqrank train` takes one: presets "
+        f"({', '.join(TEACHER_PRESETS)}), each optionally followed by its knobs, "
+        "comma-separated: a knob=value part belongs to the teacher before it, e.g. "
+        "oracle,mistake,eps_mistake=0.2; ';' also separates teachers, e.g. "
+        "'oracle;beta=1' (default: every preset)",
     )
     sim.add_argument(
         "--augment",
@@ -99,6 +104,11 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         checking = Recheck(args.recheck_gain, args.recheck_twice_gain, args.path_unchecked)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    for teacher in args.teachers:  # each checked before anything runs
+        try:
+            scripted_config(teacher)
+        except ValueError as problem:
+            raise UsageError(f"--teachers {teacher!r}: {problem}") from None
     with console_tables.progress_bar(err) as progress:
         cells = len(args.schemes) * len(args.teachers) * len(args.augment)
         task = progress.add_task("simulate", total=cells)

@@ -196,6 +196,35 @@ def parse_scripted_teacher(value: str, others: str = " or knob=value,...") -> Te
     return TeacherSpec("scripted", replace(base, **knobs), short_name=short)  # type: ignore[arg-type]
 
 
+def scripted_config(value: str) -> TeacherConfig:
+    """The knobs of the scripted teacher `value` names (a preset, knobs, or both)."""
+    config = parse_scripted_teacher(value).scripted
+    assert config is not None  # a scripted spec always has its knobs
+    return config
+
+
+TEACHER_SEPARATOR = ";"
+
+
+def split_teachers(text: str) -> list[str]:
+    """The teachers of one option value that lists several (`--teachers`), each as
+    `parse_teacher` reads it: separated by `;`, or by a comma whose next part is not a
+    knob, since a `knob=value` part belongs to the teacher before it. So `oracle,noisy`
+    and `mistake,eps_mistake=0.2,oracle` are two teachers each, and `;` separates what
+    commas cannot: `beta=1;beta=2`, `oracle;gamma=0.95`. A ValueError names an empty one."""
+    teachers: list[str] = []
+    for group in text.split(TEACHER_SEPARATOR):
+        first = len(teachers)
+        for part in (p.strip() for p in group.split(",")):
+            if not part:
+                raise ValueError(f"{text!r}: an empty teacher between separators")
+            if "=" in part and len(teachers) > first:
+                teachers[-1] += f",{part}"
+            else:
+                teachers.append(part)
+    return teachers
+
+
 def _knob(part: str, value: str) -> tuple[str, float | str]:
     key, _, text = part.partition("=")
     key = key.strip()

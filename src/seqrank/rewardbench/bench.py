@@ -3,7 +3,8 @@ no RL in the way.
 
 One cell is (pool, scheme, teacher, seed). It runs the training run's own feedback code on
 the pool's training episodes: sessions of `session_questions` questions, segments cut
-uniformly, the scripted teacher answering (B-Pref's margin from the pool's mean return),
+uniformly (a uniform episode, a uniform start within it: `pool.py`), the scripted teacher
+answering (B-Pref's margin from the training episodes' mean return per step),
 the scheme's transitive closure, and the reward ensemble trained (warm-started, as in a
 run) on every label so far. At each question budget it scores the model on a fixed sample
 of segments from held-out episodes:
@@ -131,7 +132,7 @@ def run_cell(
     train, held = pool.split()
     heldout = pool.heldout_segments(held, settings.heldout_segments, settings.segment_length)
     episodes = pool.store(train)
-    margin = float(pool.returns[train].mean()) * settings.segment_length / pool.reward.shape[1]
+    margin = pool.margin(train, settings.segment_length)
     rng = np.random.default_rng(cell.seed)
     generator = torch.Generator().manual_seed(cell.seed)
     torch.manual_seed(cell.seed)

@@ -8,7 +8,7 @@ import hashlib
 import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from itertools import product
 from pathlib import Path
 from typing import Any
@@ -40,14 +40,12 @@ def _check_settings(out: Path, settings: BenchSettings) -> None:
                 f"{out} holds a grid with other settings ({', '.join(changed)} differ); "
                 "use another --out or the same settings"
             )
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(record, indent=2) + "\n")
 
 
-def _check_pools(out: Path, tasks: dict[str, str]) -> None:
+def _checked_pools(out: Path, tasks: dict[str, str]) -> dict[str, dict[str, str]]:
     """A folder's rows of a task come from one pool, known by its content's hash
-    (`pools.json`): rows are keyed by task, so a second pool would be taken for done."""
+    (`pools.json`): rows are keyed by task, so a second pool would be taken for done.
+    Returns what `pools.json` is to hold."""
     path = out / "pools.json"
     saved: dict[str, dict[str, str]] = json.loads(path.read_text()) if path.exists() else {}
     given: dict[str, dict[str, str]] = {}
@@ -62,7 +60,7 @@ def _check_pools(out: Path, tasks: dict[str, str]) -> None:
                 f"content of {pool}); use another --out for this pool"
             )
         given[task] = record
-    path.write_text(json.dumps({**saved, **given}, indent=2) + "\n")
+    return {**saved, **given}
 
 
 def _file_hash(path: Path) -> str:
@@ -81,6 +79,73 @@ def _cell_rows(pool_path: str, cell: Cell, record: dict[str, Any]) -> list[dict[
     return [{**row, "pool": pool_path} for row in rows]
 
 
+@dataclass(frozen=True)
+class Grid:
+    """A grid folder whose pools and settings were checked (`open_grid`): what is left to
+    run can only fail by a fault of the code, not of the input."""
+
+    out: Path
+    tasks: dict[str, str]  # pool file -> its task
+    settings: BenchSettings
+
+    def run(
+        self,
+        schemes: Sequence[str],
+        teachers: Sequence[str],
+        seeds: Sequence[int],
+        workers: int,
+        progress: Progress | None = None,
+        learners: Sequence[str] = ("plain",),
+        augments: Sequence[str] = ("full",),
+    ) -> list[dict[str, Any]]:
+        """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
+        rows_path = self.out / "rows.jsonl"
+        rows = read_rows(rows_path)
+        rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
+        done = {row_key(r) for r in rows}
+        # seed by seed: a grid stopped part way leaves every combination with the same seeds
+        todo = [
+            (path, cell)
+            for seed, path, teacher, learner, augment, scheme in product(
+                seeds, self.tasks, teachers, learners, augments, schemes
+            )
+            if (cell := Cell(scheme, teacher, seed, learner, augment)).key(self.tasks[path])
+            not in done
+        ]
+        total, finished = len(todo) + len(done), len(done)
+        if progress is not None:
+            progress(finished, total)
+        record = settings_record(self.settings)
+        with ProcessPoolExecutor(max(1, workers)) as executor:
+            running: set[Future[list[dict[str, Any]]]] = {
+                executor.submit(_cell_rows, path, cell, record) for path, cell in todo
+            }
+            while running:
+                complete, running = wait(running, return_when=FIRST_COMPLETED)
+                for future in complete:
+                    new = future.result()
+                    with rows_path.open("a") as handle:
+                        handle.write("".join(json.dumps(r) + "\n" for r in new))
+                    rows.extend(new)
+                    finished += 1
+                    if progress is not None:
+                        progress(finished, total)
+        return rows
+
+
+def open_grid(pools: list[Path], settings: BenchSettings, out: Path) -> Grid:
+    """The grid folder `out` for these pools and settings, made or continued. A ValueError
+    names a pool that cannot be used, or a folder of other settings or pools; nothing is
+    written until every check has passed."""
+    tasks = {str(p): load_pool(p).task for p in pools}
+    _check_settings(out, settings)
+    pools_record = _checked_pools(out, tasks)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "settings.json").write_text(json.dumps(settings_record(settings), indent=2) + "\n")
+    (out / "pools.json").write_text(json.dumps(pools_record, indent=2) + "\n")
+    return Grid(out, tasks, settings)
+
+
 def run_grid(
     pools: list[Path],
     schemes: list[str],
@@ -93,38 +158,6 @@ def run_grid(
     learners: Sequence[str] = ("plain",),
     augments: Sequence[str] = ("full",),
 ) -> list[dict[str, Any]]:
-    """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
-    tasks = {str(p): load_pool(p).task for p in pools}  # checks every pool up front
-    _check_settings(out, settings)
-    _check_pools(out, tasks)
-    rows_path = out / "rows.jsonl"
-    rows = read_rows(rows_path)
-    rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
-    done = {row_key(r) for r in rows}
-    # seed by seed: a grid stopped part way leaves every combination with the same seeds
-    todo = [
-        (str(p), cell)
-        for seed, p, teacher, learner, augment, scheme in product(
-            seeds, pools, teachers, learners, augments, schemes
-        )
-        if (cell := Cell(scheme, teacher, seed, learner, augment)).key(tasks[str(p)]) not in done
-    ]
-    total, finished = len(todo) + len({k for k in done}), len(done)
-    if progress is not None:
-        progress(finished, total)
-    record = settings_record(settings)
-    with ProcessPoolExecutor(max(1, workers)) as executor:
-        running: set[Future[list[dict[str, Any]]]] = {
-            executor.submit(_cell_rows, path, cell, record) for path, cell in todo
-        }
-        while running:
-            complete, running = wait(running, return_when=FIRST_COMPLETED)
-            for future in complete:
-                new = future.result()
-                with rows_path.open("a") as handle:
-                    handle.write("".join(json.dumps(r) + "\n" for r in new))
-                rows.extend(new)
-                finished += 1
-                if progress is not None:
-                    progress(finished, total)
-    return rows
+    """`open_grid` then `Grid.run`: every cell not in `out/rows.jsonl` yet."""
+    grid = open_grid(pools, settings, out)
+    return grid.run(schemes, teachers, seeds, workers, progress, learners, augments)

@@ -5,9 +5,18 @@ first episode is random play, then the agent improves) plus extra episodes of un
 random play. It is one compressed `.npz` file:
 
 - `obs` (E, T, obs_dim) float32, `action` (E, T, act_dim) float32, `reward` (E, T) float32:
-  the true per-step reward;
+  the true per-step reward; T is the longest episode's length;
+- `length` (E,) int: each episode's steps. Episodes may end early (a terminal state, as
+  Gymnasium's MuJoCo tasks have): the steps after an episode's end are zeros, never read;
 - `origin` (E,) int: the episode's index in the training run, or -1 for random play;
 - `meta`: a JSON string: format, task, how the pool was made.
+
+Format 1 (no `length`: every episode T steps) is still read.
+
+Segments are cut as in a training run (`EpisodeStore.sample_segments`), so each lies within
+one episode: a uniform episode, then a uniform start within it; an episode shorter than
+the segment gives its whole self, padded with its last step at zero true reward (what an
+absorbing terminal state would show). Short episodes are thus drawn as often as long ones.
 
 Minari's format was considered: its datasets need its own package and storage layout for
 what is here three arrays, and nothing in this project reads Minari datasets, so a plain
@@ -26,8 +35,11 @@ import numpy as np
 from seqrank.envs import make_env
 from seqrank.episodes import Episode, EpisodeStore, Segments
 
-FORMAT = "seqrank-pool-1"
+FORMAT = "seqrank-pool-2"
+FORMATS = ("seqrank-pool-1", FORMAT)  # those this reads: 1 has no `length`
 RANDOM_PLAY = -1
+HELDOUT_EVERY = 4  # every 4th episode by return rank is held out, from the 3rd on
+MIN_EPISODES = HELDOUT_EVERY // 2 + 1  # the fewest with one held out (and two to train on)
 
 
 @dataclass(frozen=True)
@@ -38,32 +50,52 @@ class Pool:
     reward: np.ndarray
     origin: np.ndarray
     meta: dict[str, Any]
+    length: np.ndarray  # (E,) steps of each episode; the rest of its row is padding
 
     def __len__(self) -> int:
         return len(self.reward)
 
     @property
     def returns(self) -> np.ndarray:
-        return self.reward.sum(1)
+        return self.reward.sum(1)  # the padding is zero reward
 
     def store(self, which: np.ndarray) -> EpisodeStore:
         """The chosen episodes as an episode store (what sessions cut segments from)."""
         store = EpisodeStore(max(len(which), 1))
         for e in which:
-            store.add(Episode(self.obs[e], self.action[e], self.reward[e].astype(np.float64)))
+            steps = int(self.length[e])
+            reward = self.reward[e, :steps].astype(np.float64)
+            store.add(Episode(self.obs[e, :steps], self.action[e, :steps], reward))
         return store
 
-    def split(self, heldout_every: int = 4) -> tuple[np.ndarray, np.ndarray]:
-        """(train, held-out) episode indices: every `heldout_every`-th episode by return
+    def split(self) -> tuple[np.ndarray, np.ndarray]:
+        """(train, held-out) episode indices: every `HELDOUT_EVERY`-th episode by return
         rank is held out, so both halves span the same skill levels."""
         by_return = np.argsort(self.returns, kind="stable")
         held = np.zeros(len(self), bool)
-        held[by_return[heldout_every // 2 :: heldout_every]] = True
+        held[by_return[HELDOUT_EVERY // 2 :: HELDOUT_EVERY]] = True
         return np.flatnonzero(~held), np.flatnonzero(held)
+
+    def margin(self, which: np.ndarray, segment_length: int) -> float:
+        """B-Pref's margin: the episodes' mean return scaled to a segment (per step of
+        their mean length, which episodes that end early make shorter than T)."""
+        mean_length = float(self.length[which].mean())
+        return float(self.returns[which].mean()) * segment_length / mean_length
 
     def heldout_segments(self, which: np.ndarray, count: int, length: int) -> Segments:
         """A fixed sample of segments of the held-out episodes (the same for every cell)."""
         return self.store(which).sample_segments(count, length, np.random.default_rng(2023))
+
+
+def check_pool_size(episodes: int, what: str) -> None:
+    """A pool too small to hold an episode out is refused, naming what it has and needs."""
+    if episodes < MIN_EPISODES:
+        raise ValueError(
+            f"{what} has {episodes} episode{'s' * (episodes != 1)}; a pool needs at least "
+            f"{MIN_EPISODES}, so that one is held out to measure on (every {HELDOUT_EVERY}th "
+            f"by return, from rank {MIN_EPISODES} on): add --random-episodes or take a run "
+            "with more finished episodes"
+        )
 
 
 def save_pool(pool: Pool, path: Path) -> Path:
@@ -76,13 +108,15 @@ def save_pool(pool: Pool, path: Path) -> Path:
         action=pool.action.astype(np.float32),
         reward=pool.reward.astype(np.float32),
         origin=pool.origin.astype(np.int64),
+        length=pool.length.astype(np.int64),
         meta=np.array(meta),
     )
     return path
 
 
 def load_pool(path: Path | str) -> Pool:
-    """A saved pool; a ValueError names the file and what is wrong with it."""
+    """A saved pool; a ValueError names the file and what is wrong with it (a pool too
+    small to hold an episode out, too)."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(
@@ -92,14 +126,19 @@ def load_pool(path: Path | str) -> Pool:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in ("obs", "action", "reward", "origin", "meta")}
+            meta = json.loads(str(arrays["meta"]))
+            if meta.get("format") not in FORMATS:
+                accepted = ", ".join(FORMATS)
+                raise ValueError(f"pool format {meta.get('format')!r}; this reads {accepted}")
+            steps = arrays["reward"].shape[1]
+            length = data["length"] if "length" in data else np.full(len(arrays["reward"]), steps)
     except (OSError, ValueError, KeyError) as problem:
         raise ValueError(f"{path} is not a seqrank pool ({problem})") from None
-    meta = json.loads(str(arrays["meta"]))
-    if meta.get("format") != FORMAT:
-        raise ValueError(f"{path}: pool format {meta.get('format')!r}; this reads {FORMAT}")
+    check_pool_size(len(length), f"pool {path}")
     task = meta.pop("task")
     meta.pop("format")
-    return Pool(task, arrays["obs"], arrays["action"], arrays["reward"], arrays["origin"], meta)
+    obs, action, reward, origin = (arrays[k] for k in ("obs", "action", "reward", "origin"))
+    return Pool(task, obs, action, reward, origin, meta, length)
 
 
 def random_episodes(task: str, count: int, seed: int) -> list[Episode]:
@@ -129,28 +168,49 @@ def pool_from_episodes(
     extra_random: list[Episode],
     meta: dict[str, Any],
 ) -> Pool:
-    """A pool of a run's episodes (indices from `first_index`) and random-play ones."""
+    """A pool of a run's episodes (indices from `first_index`) and random-play ones; they
+    may differ in length (episodes that end early), each row padded to the longest."""
     episodes = [*trained, *extra_random]
-    lengths = {len(e.reward) for e in episodes}
-    if len(lengths) != 1:
-        raise ValueError(f"episodes of {task} differ in length ({sorted(lengths)})")
+    check_pool_size(len(episodes), f"the pool of {task}")
     origin = [first_index + k for k in range(len(trained))] + [RANDOM_PLAY] * len(extra_random)
+    length = np.array([len(e.reward) for e in episodes])
     return Pool(
         task,
-        np.stack([e.obs for e in episodes]).astype(np.float32),
-        np.stack([e.action for e in episodes]).astype(np.float32),
-        np.stack([e.reward for e in episodes]).astype(np.float32),
+        _padded([e.obs for e in episodes], length.max()),
+        _padded([e.action for e in episodes], length.max()),
+        _padded([e.reward for e in episodes], length.max()),
         np.array(origin),
         meta,
+        length,
     )
 
 
-def pool_from_run(
-    run_path: Path, random_count: int, seed: int, until_step: int | None = None
-) -> Pool:
+def _padded(rows: list[np.ndarray], steps: int) -> np.ndarray:
+    """Each episode's rows followed by zeros up to `steps`, stacked (float32)."""
+    out = np.zeros((len(rows), steps, *rows[0].shape[1:]), np.float32)
+    for k, row in enumerate(rows):
+        out[k, : len(row)] = row
+    return out
+
+
+@dataclass(frozen=True)
+class KeptEpisodes:
+    """The episodes a run's checkpoint kept, as a pool takes them."""
+
+    task: str
+    episodes: list[Episode]
+    first_index: int  # the run's number of the first one
+    meta: dict[str, Any]  # how they were taken
+
+    def check_size(self, random_count: int) -> None:
+        """A ValueError if these and `random_count` random episodes are too few a pool."""
+        check_pool_size(len(self.episodes) + random_count, f"the pool of run {self.meta['run']}")
+
+
+def kept_episodes(run_path: Path, until_step: int | None = None) -> KeptEpisodes:
     """The episodes kept in a run's last checkpoint (with `until_step`, only those that
-    ended by that step: the pool of a shorter run of the same settings), with
-    `random_count` random ones."""
+    ended by that step: the pool of a shorter run of the same settings). A ValueError (or
+    FileNotFoundError: no run there) names what is wrong with the run."""
     from seqrank.training.runs import RunDir
 
     run = RunDir.open(run_path)
@@ -169,11 +229,23 @@ def pool_from_run(
         "run_steps": steps,  # with until_step: the end of the last episode taken
         "until_step": until_step,
         "run_seed": config.seed,
-        "random_episodes": random_count,
-        "random_seed": seed,
     }
-    extra = random_episodes(config.task, random_count, seed)
-    return pool_from_episodes(config.task, kept, first, extra, meta)
+    return KeptEpisodes(config.task, kept, first, meta)
+
+
+def pool_from_kept(kept: KeptEpisodes, random_count: int, seed: int) -> Pool:
+    """The kept episodes with `random_count` episodes of random play."""
+    kept.check_size(random_count)  # before playing the random episodes
+    extra = random_episodes(kept.task, random_count, seed)
+    meta = {**kept.meta, "random_episodes": random_count, "random_seed": seed}
+    return pool_from_episodes(kept.task, kept.episodes, kept.first_index, extra, meta)
+
+
+def pool_from_run(
+    run_path: Path, random_count: int, seed: int, until_step: int | None = None
+) -> Pool:
+    """A run's kept episodes (see `kept_episodes`) with `random_count` random ones."""
+    return pool_from_kept(kept_episodes(run_path, until_step), random_count, seed)
 
 
 def _ended_by(

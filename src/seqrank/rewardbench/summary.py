@@ -9,13 +9,14 @@ from typing import Any
 import numpy as np
 
 from seqrank.feedback.schemes import SchemeName
-from seqrank.report.stats import interval
+from seqrank.rewardbench.intervals import Interval, bounded_interval
 
 MEASURES = {
     "accuracy": "held-out preference accuracy",
     "spearman": "rank correlation (Spearman)",
     "inferred_wrong": "wrong inferred labels (fraction)",
 }
+RANGES = {"accuracy": (0.0, 1.0), "spearman": (-1.0, 1.0), "inferred_wrong": (0.0, 1.0)}
 Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questions
 
 
@@ -27,7 +28,8 @@ def method(row: dict[str, Any]) -> str:
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per task, teacher, learner, scheme and budget: each measure's mean and 95% interval."""
+    """Per task, teacher, learner, scheme and budget: each measure's mean and 95% interval
+    (within the measure's range; none for one seed: `intervals.py`)."""
     groups: dict[Group, list[dict[str, Any]]] = defaultdict(list)
     for row in rows:
         groups[(row["task"], row["teacher"], method(row), row["scheme"], row["questions"])].append(
@@ -51,7 +53,7 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         }
         for measure in MEASURES:
             values = [m[measure] for m in members if m[measure] is not None]
-            entry[measure] = interval(values) if values else None
+            entry[measure] = bounded_interval(values, *RANGES[measure]) if values else None
         summary.append(entry)
     return summary
 
@@ -81,10 +83,12 @@ def _mean_of(values: list[float | None]) -> float | None:
     return float(np.mean(known)) if known else None
 
 
-def _cell(value: tuple[float, float, float] | None) -> str:
+def _cell(value: Interval | None) -> str:
     if value is None:
         return "-"
     mean, low, high = value
+    if low is None or high is None:
+        return f"{mean:.3f} (n=1)"  # one seed: no interval
     return f"{mean:.3f} [{low:.3f}, {high:.3f}]"
 
 
@@ -95,7 +99,8 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
     """Each method against `baseline` on the same task, teacher, scheme, budget and seed (cells
     of one seed start from the same reward model and share their random streams, so the
     seed-by-seed difference has less noise than two separate means): the mean difference in
-    accuracy and Spearman with a 95% t-interval over seeds, each side's wrong inferred
+    accuracy and Spearman with a 95% interval over seeds (within the differences' range,
+    [-1, 1] and [-2, 2]; none for one seed), each side's wrong inferred
     labels, and a verdict. Two rows of one method and cell (merged folders, two pools of a
     task) cannot be paired: they raise ValueError."""
     measures: dict[tuple[str, Paired], dict[str, Any]] = {}
@@ -121,7 +126,7 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
     ):
         differences = [row["accuracy"] - base["accuracy"] for row, base in pairs]
         spearman = [row["spearman"] - base["spearman"] for row, base in pairs]
-        accuracy = interval(differences)
+        accuracy = bounded_interval(differences, -1.0, 1.0)
         effects.append(
             {
                 "task": task,
@@ -132,22 +137,22 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
                 "questions": questions,
                 "seeds": len(pairs),
                 "accuracy_difference": accuracy,
-                "spearman_difference": interval(spearman),
+                "spearman_difference": bounded_interval(spearman, -2.0, 2.0),
                 "inferred_wrong": _mean_of([row["inferred_wrong"] for row, _ in pairs]),
                 "baseline_inferred_wrong": _mean_of([base["inferred_wrong"] for _, base in pairs]),
-                "verdict": _verdict(accuracy, len(pairs), same=not any(differences + spearman)),
+                "verdict": _verdict(accuracy, same=not any(differences + spearman)),
             }
         )
     return effects
 
 
-def _verdict(difference: tuple[float, float, float], seeds: int, same: bool) -> str:
-    """On held-out accuracy: an interval that excludes 0 says which way, with 2 seeds or more;
-    `same`: every seed gave both methods the same measures."""
+def _verdict(difference: Interval, same: bool) -> str:
+    """On held-out accuracy: an interval that excludes 0 says which way (one seed has
+    none); `same`: every seed gave both methods the same measures."""
     _, low, high = difference
     if same:
         return "identical"
-    if seeds < 2:
+    if low is None or high is None:
         return "one seed"
     return "helps" if low > 0 else "hurts" if high < 0 else "no clear difference"
 
@@ -218,10 +223,23 @@ def _effects_rows(effects: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n\n" + EFFECTS_CAVEAT + "\n"
 
 
-def _signed(value: tuple[float, float, float]) -> str:
-    """A signed difference and its interval (none for one seed); never "-0.000"."""
-    mean, low, high = (0.0 if abs(v) < 5e-4 else v for v in value)
-    return f"{mean:+.3f}" + ("" if low == high else f" [{low:+.3f}, {high:+.3f}]")
+def _signed(value: Interval) -> str:
+    """A signed difference and its interval (none for one seed, or for seeds that all
+    agree)."""
+    mean, low, high = value
+    if low is None or high is None or low == high:
+        return _sign(mean)
+    return f"{_sign(mean)} [{_sign(low)}, {_sign(high)}]"
+
+
+def _sign(value: float) -> str:
+    return f"{0.0 if abs(value) < 5e-4 else value:+.3f}"  # never "-0.000"
+
+
+def _band(value: Interval) -> tuple[float, float, float]:
+    """A curve's point and its shaded band (no width for one seed)."""
+    mean, low, high = value
+    return mean, mean if low is None else low, mean if high is None else high
 
 
 def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
@@ -246,7 +264,7 @@ def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
         for axis, (measure, title) in zip(row, MEASURES.items(), strict=True):
             for k, (scheme, learner) in enumerate(lines):  # one colour per line in every panel
                 points = [
-                    (e["questions"], *e[measure])
+                    (e["questions"], *_band(e[measure]))
                     for e in entries
                     if (e["teacher"], e["scheme"], e["learner"]) == (teacher, scheme, learner)
                     and e[measure]
