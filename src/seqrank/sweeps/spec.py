@@ -40,7 +40,7 @@ from __future__ import annotations
 import json
 import tomllib
 from collections.abc import Iterable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from itertools import product
 from pathlib import Path
 from typing import Any
@@ -68,9 +68,36 @@ TOP_KEYS = (
 AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
 AXIS_SETTINGS = {"task", "scheme", "backbone", "teacher", "reward", "seed"}
 SETTINGS = {f.name for f in fields(TrainConfig)} - AXIS_SETTINGS - {"device"}
-# settings that act only while feedback is asked for: a baseline run leaves them out, so one
-# sweep can hold QPA runs and the baselines they are compared with
-FEEDBACK_ONLY = ("query_episodes", "hybrid_replay")
+# settings that reach no baseline run (`reward` true or none): they act only while feedback
+# is asked for, or on what the answers teach. A baseline leaves them out, so it is planned
+# once per task and seed whatever a sweep's variants do to them.
+FEEDBACK_ONLY = (
+    # the budget and its sessions (training/sessions.py)
+    *("max_feedback", "reward_batch", "feedback_frequency", "segment_length"),
+    # which segments a session cuts, shows and measures the model on
+    *("selection", "oversample", "episodes_kept", "record_states", "heldout_pairs", "parts"),
+    # augmentation of the answers (feedback/closure.py, feedback/checking.py)
+    *("augment", "recheck_gain", "recheck_twice_gain", "path_unchecked"),
+    # QPA: where segments are cut, and the agent's batches while feedback is asked for
+    *("query_episodes", "hybrid_replay", "hybrid_episodes"),
+    # fitting the reward model to answers, and the learners that do (SURF, RIME)
+    *("reward_minibatch", "reward_epochs", "reward_stop_accuracy", "reward_learner"),
+    *(f"surf_{k}" for k in ("threshold", "unlabelled_ratio", "unlabelled_batch", "loss_weight")),
+    "surf_crop",
+    *(f"rime_{k}" for k in ("alpha", "beta_max", "beta_min", "decay_updates", "tau_upper")),
+    "rime_min_epochs",
+    # MRN's meta reward step (a baseline learns with PEBBLE)
+    *("meta_update_frequency", "meta_loss_weight"),
+)
+# what the true-reward agent also leaves out: it learns from the true reward from the end of
+# the warm-up, with no pre-training, no reward model and no critic reset (training/loop.py).
+# The no-feedback run uses them: it pre-trains (RIME's warm start fitting the reward model
+# there), relabels with the untrained model and resets the critic at the first session's step.
+TRUE_REWARD_UNUSED = (
+    *("unsup_steps", "knn_k", "warm_start", "updates_after_reset"),
+    *("reward_ensemble", "reward_hidden", "reward_layers", "reward_lr"),
+)
+REWARD_MODEL_SIZES = ("reward_ensemble", "reward_hidden", "reward_layers")
 # int and float settings, and the rest given as strings (choices are checked by the config)
 _KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in fields(TrainConfig)}
 
@@ -80,6 +107,9 @@ class PlannedRun:
     name: str  # relative path under <out>/runs
     config: TrainConfig
     wandb: str | None = None  # a W&B project that also gets the run's metrics
+    # names earlier versions gave this run: a baseline was once planned under each
+    # variant's name (`sweeps.folder.earlier_runs` takes such a directory over)
+    former: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -146,16 +176,22 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
 
 
 def _once(runs: Iterable[PlannedRun]) -> list[PlannedRun]:
-    """The runs, less a baseline run whose settings equal an earlier one's: variants that
-    change only feedback settings leave the baselines alike, and one run of each is enough."""
-    kept: list[PlannedRun] = []
-    seen: set[str] = set()
+    """The runs, less a baseline run planned already: one of the same name (variants that
+    change nothing it uses), or of the same settings (variants that change them alike);
+    the run kept takes over the names the dropped one once had."""
+    kept: dict[str, PlannedRun] = {}
+    by_settings: dict[str, str] = {}
     for run in runs:
         key = json.dumps(run.config.as_dict(), sort_keys=True, default=str)
-        if run.config.reward.asks or key not in seen:
-            kept.append(run)
-            seen.add(key)
-    return kept
+        first = run.name if run.name in kept else by_settings.get(key)
+        if run.config.reward.asks or first is None:
+            kept[run.name] = run
+            by_settings.setdefault(key, run.name)
+        else:
+            earlier = kept[first]
+            names = (n for n in (*earlier.former, *run.former) if n != first)
+            kept[first] = replace(earlier, former=tuple(dict.fromkeys(names)))
+    return list(kept.values())
 
 
 Method = tuple[str, dict[str, str]]  # a run name's method part, and its axis settings
@@ -190,8 +226,13 @@ class _Planned:
             "seed": seed,
             "device": self.device,
         }
+        suffix = f"_{variant_name}" if variant_name else ""
+        former: tuple[str, ...] = ()
         if "reward" in axis_values:  # a baseline: it asks nothing
-            settings = {k: v for k, v in settings.items() if k not in FEEDBACK_ONLY}
+            unused = baseline_unused(RewardSignal(axis_values["reward"]), settings)
+            settings = {k: v for k, v in settings.items() if k not in unused}
+            if not set(extra) - unused:  # the variant changes nothing this run uses
+                former, suffix = (suffix,) if suffix else (), ""
         shown = " ".join(part for part in (task, name, variant_name) if part)
         where = f"{self.source}: run {shown} seed {seed}"
         try:
@@ -200,9 +241,28 @@ class _Planned:
                 _check_path(config, self.device)
         except (ValueError, TypeError) as problem:
             raise ValueError(f"{where}: {problem}") from None
-        suffix = f"_{variant_name}" if variant_name else ""
         folder = task.replace(":", "-")
-        return PlannedRun(f"{folder}/{name}{suffix}_seed{seed}", config, self.wandb)
+        named = [f"{folder}/{name}{part}_seed{seed}" for part in (suffix, *former)]
+        return PlannedRun(named[0], config, self.wandb, tuple(named[1:]))
+
+
+def baseline_unused(reward: RewardSignal, settings: dict[str, Any]) -> frozenset[str]:
+    """The settings that never reach a baseline run of `reward` with these `settings`."""
+    unused = set(FEEDBACK_ONLY)
+    if reward is RewardSignal.TRUE:
+        unused.update(TRUE_REWARD_UNUSED)
+        if settings.get("start_from"):  # the saved run's reward model must fit (its sizes)
+            unused.difference_update(REWARD_MODEL_SIZES)
+    elif not settings.get("warm_start"):
+        unused.add("reward_lr")  # the untrained model is fitted to nothing
+    return frozenset(unused)
+
+
+def unused_settings(config: TrainConfig) -> frozenset[str]:
+    """The settings that never reach a run of this config (none for a learned reward)."""
+    if config.reward.asks:
+        return frozenset()
+    return baseline_unused(config.reward, config.as_dict())
 
 
 def _check_path(config: TrainConfig, device: str) -> None:
