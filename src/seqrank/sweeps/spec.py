@@ -26,11 +26,13 @@ max_feedback = 100
 ```
 
 Every run is one `seqrank train` run directory: `<out>/runs/<task>/<scheme>_<backbone>_
-<teacher>[_<variant>]_seed<seed>`; a baseline run (one per task, variant and seed, whatever
-the schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>[_<variant>]_
-seed<seed>`, and `schemes` may be left out when `baselines` is given. A baseline leaves out
-the settings that act only while feedback is asked for (QPA's), and of baseline runs that
-come out alike (variants that differ only in feedback settings) the first is kept. Settings
+<teacher>[_<variant>]_seed<seed>`; a baseline run (one per task and seed, whatever the
+schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>_seed<seed>`, and
+`schemes` may be left out when `baselines` is given. A baseline leaves out the settings
+that never reach it (`FEEDBACK_ONLY`; for the true-reward agent `TRUE_REWARD_UNUSED` too),
+so variants that change only those share it; a variant that changes what it uses gets its
+own, `<task>/<method>_<variant>_seed<seed>` (of those that come out alike the first is
+kept). Settings
 of one run: [overrides] < [task_overrides.<task>] < its variant < its axes. Expansion checks
 every run's settings up front, so a bad value is reported before anything starts.
 """
