@@ -175,11 +175,16 @@ class TrainConfig:
 
 
 # The settings a baseline run never reads: its results depend on the others only, so a
-# report pools baseline runs that differ in these alone.
-# Read only where questions are asked (sessions, reward learners, re-checks, QPA, MRN):
+# sweep plans it once whatever its variants do to these, and a report pools baseline runs
+# that differ in these alone.
+# Read only where questions are asked (sessions and what they cut, show and measure the
+# model on, reward learners, re-checks, QPA, MRN):
 ASKING_ONLY = frozenset(
     {
         "selection",
+        "record_states",
+        "heldout_pairs",
+        "parts",
         "oversample",
         "max_feedback",
         "reward_batch",
@@ -216,11 +221,18 @@ PRETRAINING_AND_REWARD_MODEL = REWARD_FITTING | {
 }
 
 
-def unread_settings(reward: RewardSignal, warm_start: bool = False) -> frozenset[str]:
+REWARD_MODEL_SIZES = frozenset({"reward_ensemble", "reward_hidden", "reward_layers"})
+
+
+def unread_settings(
+    reward: RewardSignal, warm_start: bool = False, start_from: bool = False
+) -> frozenset[str]:
     """The settings a run that learns from `reward` never reads (none for a learned
-    reward); `warm_start` is the run's own."""
+    reward); `warm_start` and `start_from` are the run's own (a run started from a saved
+    one checks the saved reward model's sizes against its own)."""
     if reward is RewardSignal.TRUE:
-        return ASKING_ONLY | PRETRAINING_AND_REWARD_MODEL
+        unread = ASKING_ONLY | PRETRAINING_AND_REWARD_MODEL
+        return unread - REWARD_MODEL_SIZES if start_from else unread
     if reward is RewardSignal.NONE:
         return ASKING_ONLY | REWARD_FITTING | (set() if warm_start else {"reward_lr"})
     return frozenset()

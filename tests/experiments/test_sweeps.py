@@ -11,25 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from seqrank.sweeps.engines import LocalBackend, RayBackend, run_sweep
+from seqrank.sweeps.engines import Ended, LocalBackend, RayBackend
+from seqrank.sweeps.runner import run_sweep
 from seqrank.sweeps.spec import expand, load_sweep
-
-TINY = {
-    "steps": 1800,
-    "seed_steps": 300,
-    "unsup_steps": 900,
-    "feedback_frequency": 500,
-    "max_feedback": 20,
-    "reward_batch": 10,
-    "hidden": 32,
-    "batch": 32,
-    "reward_hidden": 32,
-    "reward_epochs": 5,
-    "eval_every": 900,
-    "eval_episodes": 1,
-    "checkpoint_every": 1000,
-    "heldout_pairs": 50,
-}
+from support.sweeps import TINY
 
 
 def tiny_sweep(out, **extra):
@@ -106,7 +91,7 @@ def test_qpa_variants_and_baselines_share_a_sweep_with_one_baseline_run_each():
     assert sorted(by_name) == [
         "walker_walk/root_pebble_oracle_plain_seed0",
         "walker_walk/root_pebble_oracle_qpa_seed0",
-        "walker_walk/true-reward_plain_seed0",
+        "walker_walk/true-reward_seed0",
     ]
     qpa, baseline = by_name["walker_walk/root_pebble_oracle_qpa_seed0"], by_name[sweep.runs[2].name]
     assert (qpa.query_episodes, qpa.hybrid_replay) == (10, 0.5)
@@ -182,7 +167,7 @@ def test_sweep_file_must_exist_and_be_toml(tmp_path):
 def test_local_engine_runs_skips_resumes_and_reports_failures(tmp_path):
     sweep = tiny_sweep(tmp_path / "sweep")
     status = run_sweep(sweep, LocalBackend(2))
-    assert {r.state for r in status.runs.values()} == {"trained"}
+    assert {(r.state, r.outcome) for r in status.runs.values()} == {("finished", "trained")}
     summaries = {
         r.name: json.loads((sweep.out / "runs" / r.name / "summary.json").read_text())
         for r in sweep.runs
@@ -194,11 +179,12 @@ def test_local_engine_runs_skips_resumes_and_reports_failures(tmp_path):
     (killed / "summary.json").unlink()
     stamp = os.stat(sweep.out / "runs" / sweep.runs[0].name / "summary.json").st_mtime_ns
     status = run_sweep(sweep, LocalBackend(2))
-    assert status.runs[sweep.runs[0].name].state == "skipped"
-    assert status.runs[sweep.runs[1].name].state == "resumed"
+    assert status.runs[sweep.runs[0].name].outcome == "skipped"
+    assert status.runs[sweep.runs[1].name].outcome == "resumed"
     assert os.stat(sweep.out / "runs" / sweep.runs[0].name / "summary.json").st_mtime_ns == stamp
     recorded = json.loads((sweep.out / "sweep.json").read_text())
-    assert recorded["counts"] == {"skipped": 1, "resumed": 1}
+    assert recorded["counts"] == {"finished": 2}
+    assert sorted(r["outcome"] for r in recorded["runs"]) == ["resumed", "skipped"]
 
 
 def test_a_failed_runs_error_reads_the_same_from_every_engine():
@@ -221,10 +207,10 @@ def test_failures_are_retried_then_reported(tmp_path):
     status = run_sweep(sweep, LocalBackend(2))
     failed = status.runs[broken.name]
     assert failed.state == "failed" and failed.attempts == 3 and "JSON" in failed.error
-    assert status.runs[sweep.runs[1].name].state == "trained"
+    assert status.runs[sweep.runs[1].name].state == "finished"
     assert json.loads((sweep.out / "sweep.json").read_text())["counts"] == {
         "failed": 1,
-        "trained": 1,
+        "finished": 1,
     }
 
 
@@ -240,7 +226,7 @@ def test_ray_engine_runs_a_tiny_sweep_and_cleans_up(tmp_path, monkeypatch):
     try:
         sweep = tiny_sweep(tmp_path / "sweep")
         status = run_sweep(sweep, RayBackend(None, 2, 1.0, 0.0, temp))
-        assert {r.state for r in status.runs.values()} == {"trained"}
+        assert {r.state for r in status.runs.values()} == {"finished"}
         assert not ray.is_initialized()
         assert all((sweep.out / "runs" / r.name / "summary.json").exists() for r in sweep.runs)
         for _ in range(100):  # Ray's own processes (they name the session dir) are gone
@@ -315,9 +301,10 @@ def test_a_killed_sweep_command_resumes_without_redoing_finished_runs(tmp_path):
     stamp = (first / "summary.json").stat().st_mtime_ns
     again = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
-    states = {r["name"]: r["state"] for r in json.loads((out / "sweep.json").read_text())["runs"]}
-    assert states[names[0]] == "skipped"
-    assert states[names[1]] in ("resumed", "trained")
+    runs = {r["name"]: r for r in json.loads((out / "sweep.json").read_text())["runs"]}
+    assert {r["state"] for r in runs.values()} == {"finished"}
+    assert runs[names[0]]["outcome"] == "skipped"
+    assert runs[names[1]]["outcome"] in ("resumed", "trained")
     assert (first / "summary.json").stat().st_mtime_ns == stamp
     assert json.loads((second / "summary.json").read_text())["steps"] == 3000
 
@@ -339,14 +326,20 @@ class RecordingBackend:
     def __init__(self):
         self.submitted, self.pending = [], []
 
-    def submit(self, run, path):
+    def submit(self, run, path, token):
         self.submitted.append(run.name)
         self.pending.append(run.name)
         return run.name
 
-    def done(self):
-        handle = self.pending.pop(0)
-        yield handle, {"status": "trained", "summary": {"final_eval_return": 1.0}}, None
+    def started(self):
+        return []
+
+    def ended(self, timeout):
+        result = {"status": "trained", "summary": {"final_eval_return": 1.0}}
+        return [Ended(self.pending.pop(0), result=result)]
+
+    def cancel(self, handle):
+        return False
 
     def stop(self):
         pass

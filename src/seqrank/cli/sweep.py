@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +58,7 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import DirLock, check_folder
-    from seqrank.sweeps.engines import changed_runs
+    from seqrank.sweeps.folder import changed_runs, earlier_runs
     from seqrank.sweeps.spec import load_sweep
 
     ray_only = [
@@ -73,47 +76,56 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         sweep = load_sweep(args.spec)
         check_folder(sweep.out, "sweep folder")
         changed = dict(changed_runs(sweep))
+        earlier = earlier_runs(sweep)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     err.print(
         f"sweep {sweep.name}: {len(sweep.runs)} runs in {sweep.out / 'runs'}", highlight=False
     )
     if args.dry_run:
-        _list_runs(sweep, changed, out)
+        _list_runs(sweep, changed, earlier, out)
         return 0
     if changed and not args.rerun_changed:
         raise UsageError(_changed_message(sweep, changed, args.spec))
     sweep.out.mkdir(parents=True, exist_ok=True)
     try:
         with DirLock(sweep.out, "sweep folder"):
-            return _run(sweep, list(changed), args, out, err)
+            return _run(sweep, list(changed), earlier, args, out, err)
     except ValueError as problem:  # the folder in use, or a changed run being trained
         raise UsageError(str(problem)) from None
 
 
 def _run(
-    sweep: Any, changed: list[str], args: argparse.Namespace, out: Console, err: Console
+    sweep: Any,
+    changed: list[str],
+    earlier: dict[str, str],
+    args: argparse.Namespace,
+    out: Console,
+    err: Console,
 ) -> int:
-    from seqrank.sweeps.engines import set_aside
-    from seqrank.training.stopping import interrupt_on_signals
+    from seqrank.sweeps.folder import as_saved, set_aside, take_over
+    from seqrank.sweeps.runner import RunStatus, StopRequests
 
+    if earlier:
+        take_over(sweep, earlier)
+        err.print(f"{len(earlier)} baseline runs renamed to their names now", highlight=False)
     if changed:
         folder = set_aside(sweep, changed)
         err.print(f"{len(changed)} changed runs moved to {folder}; rerunning them", highlight=False)
-    backend = _backend(args)
-    with interrupt_on_signals(backend.stop) as stop:
-        try:
-            status = _run_with_progress(sweep, backend, err)
-        except KeyboardInterrupt:
-            backend.close()  # waits for the runs to stop (a second signal: at once)
-            err.print(
-                "interrupted: the runs stopped at an episode end with a checkpoint; rerun "
-                "the same command to continue",
-                highlight=False,
-            )
-            return stop.exit_code()
-    failed = [r for r in status.runs.values() if r.state == "failed"]
+    sweep = as_saved(sweep)
+    stop = StopRequests()
+    with _counting_signals(stop):
+        status = _run_with_progress(sweep, _backend(args), err, stop)
     out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
+    if status.stopped:
+        err.print(
+            "interrupted: the running runs stopped (local: at an episode end with a "
+            "checkpoint; Ray: from their last checkpoint), the queued ones never began; rerun "
+            "the same command to continue",
+            highlight=False,
+        )
+        return stop.exit_code()
+    failed = [r for r in status.runs.values() if r.state is RunStatus.FAILED]
     for failure in failed:
         out.print(
             f"failed after {failure.attempts} attempts: {failure.name}: {failure.error}",
@@ -122,10 +134,29 @@ def _run(
     return 1 if failed else 0
 
 
-def _list_runs(sweep: Any, changed: dict[str, list[str]], out: Console) -> None:
+@contextlib.contextmanager
+def _counting_signals(stop: Any) -> Iterator[None]:
+    """SIGINT and SIGTERM count as stop requests, which the sweep forwards to its runs (so a
+    signal sent to the sweep's process alone reaches them); the old handlers come back."""
+    previous = {
+        number: signal.signal(number, lambda signum, frame: stop.request(signum))
+        for number in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _list_runs(
+    sweep: Any, changed: dict[str, list[str]], earlier: dict[str, str], out: Console
+) -> None:
     """Each planned run and what a sweep would do with it."""
     for planned in sweep.runs:
         path = sweep.out / "runs" / planned.name
+        if planned.name in earlier:
+            path = sweep.out / "runs" / earlier[planned.name]
         if planned.name in changed:
             state = f"changed: {', '.join(changed[planned.name])}"
         elif (path / "summary.json").is_file():
@@ -134,6 +165,8 @@ def _list_runs(sweep: Any, changed: dict[str, list[str]], out: Console) -> None:
             state = "started"
         else:
             state = "new"
+        if planned.name in earlier:
+            state += f", as {earlier[planned.name]}: renamed to this"
         out.print(f"{planned.name}  ({state})", highlight=False, soft_wrap=True)
 
 
@@ -160,9 +193,9 @@ def _backend(args: argparse.Namespace) -> Any:
         raise UsageError("--engine ray needs Ray: pip install 'seqrank[ray]'") from None
 
 
-def _run_with_progress(sweep: Any, backend: Any, err: Console) -> Any:
+def _run_with_progress(sweep: Any, backend: Any, err: Console, stop: Any) -> Any:
     """Run the sweep with a bar of ended runs and a line per change of a run's state."""
-    from seqrank.sweeps.engines import run_sweep
+    from seqrank.sweeps.runner import RunStatus, run_sweep
 
     columns = (
         TextColumn("[bold]{task.description}"),
@@ -176,12 +209,12 @@ def _run_with_progress(sweep: Any, backend: Any, err: Console) -> Any:
 
         def event(status: Any, state: Any) -> None:
             counts = status.counts()
-            ended = sum(n for s, n in counts.items() if s not in ("running", "pending"))
+            done = counts.get(RunStatus.FINISHED, 0) + counts.get(RunStatus.FAILED, 0)
             text = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
-            progress.update(bar, completed=ended, counts=text)
-            detail = f": {state.error}" if state.state == "failed" else ""
-            if state.state == "running":
+            progress.update(bar, completed=done, counts=text)
+            detail = f": {state.error}" if state.state is RunStatus.FAILED else ""
+            if state.state is RunStatus.QUEUED and state.error:
                 detail = f" (retry {state.attempts - 1}: {state.error})"
             err.print(f"{state.name}: {state.state}{detail}", highlight=False)
 
-        return run_sweep(sweep, backend, event)
+        return run_sweep(sweep, backend, event, stop)

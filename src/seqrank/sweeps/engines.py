@@ -1,46 +1,52 @@
-"""Running a sweep: each run in its own process (local pool or Ray), with retries.
+"""The engines that run a sweep's runs, each in its own process: a local pool or Ray.
 
 A finished run (its `summary.json` exists) is skipped; a killed run resumes from its last
-checkpoint; a failed run is tried again `retries` times and then reported, never dropped.
-`<out>/sweep.json` records every run's state after each event, atomically.
+checkpoint. Each run says when it has begun (it holds its directory's lock) through a queue
+(`Backend.started`), so the sweep can tell queued runs from running ones, and each run's
+end says whether it finished, failed, or was stopped on request (`Ended`).
 
 Stopping: local workers ignore SIGINT and take SIGTERM as "stop at the next episode end with
-a checkpoint, and start no other run"; the sweep command forwards its own SIGINT or SIGTERM
-to them (`LocalBackend.stop`), so a signal sent to the sweep's process alone, as `kill` and
-schedulers do, stops every run cleanly. A second signal stops them at once.
+a checkpoint, and start no other run"; the sweep forwards each SIGINT or SIGTERM it gets to
+them (`LocalBackend.stop`), so a signal sent to the sweep's process alone, as `kill` and
+schedulers do, stops every run cleanly. A second signal stops them at once. Ray's tasks are
+cancelled instead (`RayBackend.stop`): they continue later from their last checkpoint.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import multiprocessing
 import os
 import signal
 import threading
-import time
-from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from seqrank.sweeps.spec import PlannedRun, Sweep
+from seqrank.sweeps.spec import PlannedRun
 
 ENGINES = ("local", "ray")
 
 # set in a local worker process by its first SIGTERM (see `_start_worker`)
 _worker_stop: threading.Event | None = None
+# where a local worker says that a run has begun (see `_start_worker`)
+_worker_starts: Any = None
 
 
-def _start_worker() -> None:
+class NotStarted(Exception):
+    """The sweep was stopping when a worker took this run: it did not begin."""
+
+
+def _start_worker(starts: Any) -> None:
     """A local worker's signals: SIGINT is the sweep command's to handle (a terminal's
     Ctrl-C reaches the whole process group); the first SIGTERM asks the run to stop, a
-    second one interrupts it."""
+    second one interrupts it. `starts` is the queue its runs announce their start on."""
     from seqrank.training.stopping import stop_then_interrupt
 
-    global _worker_stop
+    global _worker_stop, _worker_starts
     stop = _worker_stop = threading.Event()
+    _worker_starts = starts
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, stop_then_interrupt(lambda signum: stop.set()))
 
@@ -53,11 +59,16 @@ def failure_text(error: BaseException) -> str:
 
 
 def train_run(
-    path: str, config: dict[str, Any], threads: int, wandb: str | None = None
+    path: str,
+    config: dict[str, Any],
+    threads: int,
+    wandb: str | None = None,
+    token: str | None = None,
+    starts: Any = None,
 ) -> dict[str, Any]:
     """Train (or finish, or skip) one run; runs inside a worker process. The run's directory
-    is locked while it trains; Ctrl-C or SIGTERM stop it at its next episode end, with a
-    checkpoint."""
+    is locked while it trains; once it is, `token` is put on `starts` (a local worker's
+    queue when None). Ctrl-C or SIGTERM stop it at its next episode end, with a checkpoint."""
     import torch
 
     from seqrank.config import TrainConfig
@@ -66,11 +77,14 @@ def train_run(
     from seqrank.training.trainer import Trainer
 
     if _worker_stop is not None and _worker_stop.is_set():
-        raise RuntimeError("the sweep is stopping: run not started")
+        raise NotStarted("the sweep is stopping: run not started")
     torch.set_num_threads(threads)
     settings = TrainConfig(**config)
     started = open_or_start(Path(path), settings, settings.device, Trainer, wandb)
     try:
+        queue = starts if starts is not None else _worker_starts
+        if token is not None and queue is not None:
+            queue.put(token)
         if started.finished:
             return {"status": "skipped", "summary": started.run.read_summary()}
         if _worker_stop is not None:  # a local worker: its SIGTERM handler is installed
@@ -84,62 +98,29 @@ def train_run(
         started.run.release()
 
 
-def changed_runs(sweep: Sweep) -> list[tuple[str, list[str]]]:
-    """Runs whose directory holds a run of other settings than the sweep now plans, with
-    what differs (saved -> planned)."""
-    from seqrank.config import config_differences
-    from seqrank.training.runs import RunDir
+@dataclass(frozen=True)
+class Ended:
+    """A run's attempt that ended: with train_run's answer, a failure, or interrupted (stopped
+    on request, or dropped before it began: which of the two, its start tells)."""
 
-    changed = []
-    for planned in sweep.runs:
-        path = sweep.out / "runs" / planned.name
-        if (path / "config.json").is_file():
-            differences = config_differences(RunDir.open(path).read_config(), planned.config)
-            if differences:
-                changed.append((planned.name, differences))
-    return changed
-
-
-def set_aside(sweep: Sweep, names: list[str]) -> Path:
-    """Move the named runs' directories to `<out>/replaced/<time>/`, each while holding
-    its lock (a run that is training elsewhere is not moved); returns that folder."""
-    from seqrank.dirs import DirLock
-
-    folder = sweep.out / "replaced" / time.strftime("%Y%m%d-%H%M%S")
-    for name in names:
-        source, target = sweep.out / "runs" / name, folder / name
-        with DirLock(source, "run directory"):
-            target.parent.mkdir(parents=True, exist_ok=True)
-            source.rename(target)
-    return folder
-
-
-@dataclass
-class RunState:
-    name: str
-    state: str = "pending"  # pending | running | trained | resumed | skipped | failed
-    attempts: int = 0
+    handle: Any
+    result: dict[str, Any] | None = None
     error: str | None = None
-    final_eval_return: float | None = None
+    interrupted: bool = False
 
 
-@dataclass
-class SweepStatus:
-    runs: dict[str, RunState] = field(default_factory=dict)
+def _interruption(error: BaseException) -> bool:
+    """Whether a run's error is the sweep's stop rather than a failure."""
+    from seqrank.training.loop import RunStopped
 
-    def counts(self) -> dict[str, int]:
-        out: dict[str, int] = {}
-        for run in self.runs.values():
-            out[run.state] = out.get(run.state, 0) + 1
-        return out
-
-
-Event = Callable[[SweepStatus, RunState], None]
+    return isinstance(error, RunStopped | KeyboardInterrupt | NotStarted)
 
 
 class Backend(Protocol):
-    def submit(self, run: PlannedRun, path: Path) -> Any: ...
-    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]: ...
+    def submit(self, run: PlannedRun, path: Path, token: str) -> Any: ...
+    def started(self) -> list[str]: ...  # the tokens of runs that began since the last call
+    def ended(self, timeout: float) -> list[Ended]: ...  # waits up to `timeout` seconds
+    def cancel(self, handle: Any) -> bool: ...  # True: dropped before it began
     def stop(self) -> None: ...
     def close(self) -> None: ...
 
@@ -149,26 +130,46 @@ class LocalBackend:
 
     def __init__(self, workers: int):
         context = multiprocessing.get_context("spawn")
-        self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker)
+        # a SimpleQueue's put is written before it returns: a run's start is readable before
+        # its end is
+        self.starts = context.SimpleQueue()
+        self.pool = ProcessPoolExecutor(
+            workers, mp_context=context, initializer=_start_worker, initargs=(self.starts,)
+        )
         self.pending: set[Future[dict[str, Any]]] = set()
 
-    def submit(self, run: PlannedRun, path: Path) -> Any:
-        future = self.pool.submit(train_run, str(path), run.config.as_dict(), 1, run.wandb)
+    def submit(self, run: PlannedRun, path: Path, token: str) -> Any:
+        config = run.config.as_dict()
+        future = self.pool.submit(train_run, str(path), config, 1, run.wandb, token)
         self.pending.add(future)
         return future
 
-    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]:
-        finished, self.pending = wait(self.pending, return_when=FIRST_COMPLETED)
+    def started(self) -> list[str]:
+        tokens = []
+        while not self.starts.empty():
+            tokens.append(self.starts.get())
+        return tokens
+
+    def ended(self, timeout: float) -> list[Ended]:
+        finished, self.pending = wait(self.pending, timeout, FIRST_COMPLETED)
+        out = []
         for future in finished:
             error = future.exception()
             if error is None:
-                yield future, future.result(), None
+                out.append(Ended(future, result=future.result()))
             else:
-                yield future, None, failure_text(error)
+                out.append(_ended_by(future, error))
+        return out
+
+    def cancel(self, handle: Any) -> bool:
+        if handle.cancel():
+            self.pending.discard(handle)
+            return True
+        return False
 
     def stop(self) -> None:
         """SIGTERM to every worker: each run stops at its next episode end with a checkpoint
-        (a second call stops them at once); `close` then waits for them."""
+        (a second call stops them at once); their ends then come back as interrupted."""
         # the executor keeps its worker processes only in a private field
         for process in list(getattr(self.pool, "_processes", {}).values()):
             with contextlib.suppress(ProcessLookupError):
@@ -176,6 +177,12 @@ class LocalBackend:
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ended_by(handle: Any, error: BaseException) -> Ended:
+    if _interruption(error):
+        return Ended(handle, interrupted=True)
+    return Ended(handle, error=failure_text(error))
 
 
 class RayBackend:
@@ -186,6 +193,7 @@ class RayBackend:
     ):
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         import ray
+        from ray.util.queue import Queue
 
         self.ray = ray
         options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
@@ -195,73 +203,47 @@ class RayBackend:
                 options["_temp_dir"] = str(temp)
         ray.init(address=address, **options)
         self.task = ray.remote(num_cpus=cpus, num_gpus=gpus, max_retries=0)(train_run)
+        # the runs' starts: an actor that takes no CPU from the runs
+        self.starts = Queue(actor_options={"num_cpus": 0})
         self.pending: list[Any] = []
+        self.stops = 0
 
-    def submit(self, run: PlannedRun, path: Path) -> Any:
-        ref = self.task.remote(str(path.resolve()), run.config.as_dict(), 1, run.wandb)
+    def submit(self, run: PlannedRun, path: Path, token: str) -> Any:
+        config = run.config.as_dict()
+        ref = self.task.remote(str(path.resolve()), config, 1, run.wandb, token, self.starts)
         self.pending.append(ref)
         return ref
 
-    def done(self) -> Iterator[tuple[Any, dict[str, Any] | None, str | None]]:
-        ready, self.pending = self.ray.wait(self.pending, num_returns=1)
-        for ref in ready:
-            try:
-                yield ref, self.ray.get(ref), None
-            except self.ray.exceptions.RayError as error:
-                cause = getattr(error, "cause", None) or error
-                yield ref, None, failure_text(cause)
+    def started(self) -> list[str]:
+        waiting = self.starts.qsize()
+        return list(self.starts.get_nowait_batch(waiting)) if waiting else []
+
+    def ended(self, timeout: float) -> list[Ended]:
+        ready, self.pending = self.ray.wait(self.pending, num_returns=1, timeout=timeout)
+        return [self._ended(ref) for ref in ready]
+
+    def _ended(self, ref: Any) -> Ended:
+        errors = self.ray.exceptions
+        try:
+            return Ended(ref, result=self.ray.get(ref))
+        except errors.TaskCancelledError:
+            return Ended(ref, interrupted=True)
+        except errors.WorkerCrashedError as error:  # what a forced cancel leaves
+            return Ended(ref, interrupted=True) if self.stops else _ended_by(ref, error)
+        except errors.RayError as error:
+            return _ended_by(ref, getattr(error, "cause", None) or error)
+
+    def cancel(self, handle: Any) -> bool:
+        """Ask Ray to drop it; whether it had begun, its start (or none) tells."""
+        self.ray.cancel(handle)
+        return False
 
     def stop(self) -> None:
-        """Nothing to send: `close` shuts Ray down, which ends its workers; their runs
-        continue from their last checkpoint."""
+        """Cancel every task (a run interrupted at once; the second time, its worker ended):
+        a run continues later from its last checkpoint."""
+        self.stops += 1
+        for ref in self.pending:
+            self.ray.cancel(ref, force=self.stops > 1)
 
     def close(self) -> None:
         self.ray.shutdown()
-
-
-def run_sweep(sweep: Sweep, backend: Backend, on_event: Event | None = None) -> SweepStatus:
-    """Run every planned run to completion or failure; returns the final status."""
-    runs_dir = sweep.out / "runs"
-    status = SweepStatus({r.name: RunState(r.name) for r in sweep.runs})
-    by_handle: dict[Any, PlannedRun] = {}
-
-    def start(run: PlannedRun) -> None:
-        state = status.runs[run.name]
-        state.state, state.attempts = "running", state.attempts + 1
-        by_handle[backend.submit(run, runs_dir / run.name)] = run
-
-    try:
-        for run in sweep.runs:
-            start(run)
-        _save(sweep, status)
-        while by_handle:
-            for handle, result, error in backend.done():
-                run = by_handle.pop(handle)
-                state = status.runs[run.name]
-                if error is None and result is not None:
-                    state.state, state.error = result["status"], None
-                    state.final_eval_return = result["summary"].get("final_eval_return")
-                elif state.attempts <= sweep.retries:
-                    state.error = error
-                    start(run)
-                else:
-                    state.state, state.error = "failed", error
-                _save(sweep, status)
-                if on_event is not None:
-                    on_event(status, state)
-    finally:
-        backend.close()
-    return status
-
-
-def _save(sweep: Sweep, status: SweepStatus) -> None:
-    sweep.out.mkdir(parents=True, exist_ok=True)
-    payload = {
-        "name": sweep.name,
-        "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
-        "counts": status.counts(),
-        "runs": [vars(r) for r in status.runs.values()],
-    }
-    partial = sweep.out / "sweep.json.part"
-    partial.write_text(json.dumps(payload, indent=2))
-    partial.replace(sweep.out / "sweep.json")

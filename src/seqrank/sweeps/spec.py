@@ -26,13 +26,15 @@ max_feedback = 100
 ```
 
 Every run is one `seqrank train` run directory: `<out>/runs/<task>/<scheme>_<backbone>_
-<teacher>[_<variant>]_seed<seed>`; a baseline run (one per task, variant and seed, whatever
-the schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>[_<variant>]_
-seed<seed>`, and `schemes` may be left out when `baselines` is given. A baseline leaves out
-the settings that act only while feedback is asked for (QPA's), and of baseline runs that
-come out alike (variants that differ only in feedback settings) the first is kept. Settings
-of one run: [overrides] < [task_overrides.<task>] < its variant < its axes. Expansion checks
-every run's settings up front, so a bad value is reported before anything starts.
+<teacher>[_<variant>]_seed<seed>`; a baseline run (one per task and seed, whatever the
+schemes, backbones and teachers) is `<task>/<true-reward|no-feedback>_seed<seed>`, and
+`schemes` may be left out when `baselines` is given. A baseline leaves out the settings
+that never reach it (`config.unread_settings`: the feedback settings; for the true-reward
+agent pre-training and the reward model too), so variants that change only those share
+it; a variant that changes what it uses gets its own, `<task>/<method>_<variant>_seed<seed>`
+(of those that come out alike the first is kept). Settings of one run: [overrides] <
+[task_overrides.<task>] < its variant < its axes. Expansion checks every run's settings
+up front, so a bad value is reported before anything starts.
 """
 
 from __future__ import annotations
@@ -40,13 +42,13 @@ from __future__ import annotations
 import json
 import tomllib
 from collections.abc import Iterable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from itertools import product
 from pathlib import Path
 from typing import Any
 
 from seqrank.choices import RewardSignal
-from seqrank.config import TrainConfig, resolve_config
+from seqrank.config import TrainConfig, resolve_config, unread_settings
 
 TOP_KEYS = (
     "name",
@@ -68,9 +70,6 @@ TOP_KEYS = (
 AXES = {"tasks": "task", "schemes": "scheme", "backbones": "backbone", "teachers": "teacher"}
 AXIS_SETTINGS = {"task", "scheme", "backbone", "teacher", "reward", "seed"}
 SETTINGS = {f.name for f in fields(TrainConfig)} - AXIS_SETTINGS - {"device"}
-# settings that act only while feedback is asked for: a baseline run leaves them out, so one
-# sweep can hold QPA runs and the baselines they are compared with
-FEEDBACK_ONLY = ("query_episodes", "hybrid_replay")
 # int and float settings, and the rest given as strings (choices are checked by the config)
 _KIND = {f.name: str(f.type) if f.type in ("int", "float") else "str" for f in fields(TrainConfig)}
 
@@ -80,6 +79,9 @@ class PlannedRun:
     name: str  # relative path under <out>/runs
     config: TrainConfig
     wandb: str | None = None  # a W&B project that also gets the run's metrics
+    # names earlier versions gave this run: a baseline was once planned under each
+    # variant's name (`sweeps.folder.earlier_runs` takes such a directory over)
+    former: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -146,16 +148,22 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
 
 
 def _once(runs: Iterable[PlannedRun]) -> list[PlannedRun]:
-    """The runs, less a baseline run whose settings equal an earlier one's: variants that
-    change only feedback settings leave the baselines alike, and one run of each is enough."""
-    kept: list[PlannedRun] = []
-    seen: set[str] = set()
+    """The runs, less a baseline run planned already: one of the same name (variants that
+    change nothing it uses), or of the same settings (variants that change them alike);
+    the run kept takes over the names the dropped one once had."""
+    kept: dict[str, PlannedRun] = {}
+    by_settings: dict[str, str] = {}
     for run in runs:
         key = json.dumps(run.config.as_dict(), sort_keys=True, default=str)
-        if run.config.reward.asks or key not in seen:
-            kept.append(run)
-            seen.add(key)
-    return kept
+        first = run.name if run.name in kept else by_settings.get(key)
+        if run.config.reward.asks or first is None:
+            kept[run.name] = run
+            by_settings.setdefault(key, run.name)
+        else:
+            earlier = kept[first]
+            names = (n for n in (*earlier.former, *run.former) if n != first)
+            kept[first] = replace(earlier, former=tuple(dict.fromkeys(names)))
+    return list(kept.values())
 
 
 Method = tuple[str, dict[str, str]]  # a run name's method part, and its axis settings
@@ -190,8 +198,13 @@ class _Planned:
             "seed": seed,
             "device": self.device,
         }
+        suffix = f"_{variant_name}" if variant_name else ""
+        former: tuple[str, ...] = ()
         if "reward" in axis_values:  # a baseline: it asks nothing
-            settings = {k: v for k, v in settings.items() if k not in FEEDBACK_ONLY}
+            unused = baseline_unused(RewardSignal(axis_values["reward"]), settings)
+            settings = {k: v for k, v in settings.items() if k not in unused}
+            if not set(extra) - unused:  # the variant changes nothing this run uses
+                former, suffix = (suffix,) if suffix else (), ""
         shown = " ".join(part for part in (task, name, variant_name) if part)
         where = f"{self.source}: run {shown} seed {seed}"
         try:
@@ -200,9 +213,22 @@ class _Planned:
                 _check_path(config, self.device)
         except (ValueError, TypeError) as problem:
             raise ValueError(f"{where}: {problem}") from None
-        suffix = f"_{variant_name}" if variant_name else ""
         folder = task.replace(":", "-")
-        return PlannedRun(f"{folder}/{name}{suffix}_seed{seed}", config, self.wandb)
+        named = [f"{folder}/{name}{part}_seed{seed}" for part in (suffix, *former)]
+        return PlannedRun(named[0], config, self.wandb, tuple(named[1:]))
+
+
+def baseline_unused(reward: RewardSignal, settings: dict[str, Any]) -> frozenset[str]:
+    """The settings that never reach a baseline run of `reward` with these `settings`."""
+    warm_start, start_from = bool(settings.get("warm_start")), bool(settings.get("start_from"))
+    return unread_settings(reward, warm_start, start_from)
+
+
+def unused_settings(config: TrainConfig) -> frozenset[str]:
+    """The settings that never reach a run of this config (none for a learned reward)."""
+    if config.reward.asks:
+        return frozenset()
+    return baseline_unused(config.reward, config.as_dict())
 
 
 def _check_path(config: TrainConfig, device: str) -> None:
