@@ -7,6 +7,9 @@ Threats and what stops each (SECURITY.md says the same for users):
 - cross-site requests from a page the annotator visits (another site, or another port on
   this machine): a foreign `Origin` or a cross-origin `Sec-Fetch-Site` is refused, so a
   page elsewhere can neither read nor write; writes must be JSON (checked in `limits.py`);
+- forged log lines: a refused request's path, method and headers are logged escaped
+  (`loggable`), so a request (a cross-site image is enough to send one) can neither
+  start a new line in the operator's terminal nor send it control characters;
 - the token leaking: `?token=` is accepted on the page address only, traded there for an
   HttpOnly, SameSite=Strict cookie (the page then drops it from the address bar); the
   cookie holds a value derived from the token, not the token, and its name carries the
@@ -16,6 +19,7 @@ Threats and what stops each (SECURITY.md says the same for users):
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import hmac
 import ipaddress
@@ -23,12 +27,13 @@ import logging
 import secrets
 import socket
 import string
+import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 
 from starlette.datastructures import Headers
-from starlette.requests import Request
+from starlette.requests import HTTPConnection
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -48,6 +53,19 @@ SECURITY_HEADERS = [
     (b"cross-origin-resource-policy", b"same-origin"),
 ]
 log = logging.getLogger(__name__)
+LIMITED_BROADCAST = ipaddress.IPv4Address("255.255.255.255")
+
+
+def loggable(value: str, limit: int = 200) -> str:
+    """A value from a request as it may go into the log: at most `limit` characters, with
+    control characters, non-ASCII and backslashes escaped (`\\x1b`, `\\n`, `\\u202e`)."""
+    return value[:limit].encode("unicode_escape").decode("ascii")
+
+
+def log_refusal(method: str, path: str, status: int, detail: str) -> None:
+    """One line per refused request: method, path, status and reason, never the body."""
+    shown = (loggable(method, 20), loggable(path), status, loggable(detail, 300))
+    log.warning("refused %s %s (%d): %s", *shown)
 
 
 def is_loopback(host: str) -> bool:
@@ -102,14 +120,42 @@ def host_name(host_header: str) -> str | None:
     return name or None
 
 
+@lru_cache(maxsize=1)
+def subnet_edges() -> frozenset[ipaddress.IPv4Address]:
+    """The network and broadcast addresses of this machine's IPv4 subnets (Linux; empty
+    where the interfaces cannot be asked). A socket binds to a subnet's broadcast address,
+    but no host is reached by it."""
+    try:
+        import fcntl
+    except ImportError:  # not a POSIX system
+        return frozenset()
+    get_address, get_netmask = 0x8915, 0x891B  # SIOCGIFADDR, SIOCGIFNETMASK
+    edges: set[ipaddress.IPv4Address] = set()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        for _, interface in socket.if_nameindex():
+            request = struct.pack("256s", interface.encode()[:15])
+            with contextlib.suppress(OSError):  # an interface without an IPv4 address
+                address = fcntl.ioctl(probe.fileno(), get_address, request)[20:24]
+                netmask = fcntl.ioctl(probe.fileno(), get_netmask, request)[20:24]
+                network = ipaddress.IPv4Network(
+                    (socket.inet_ntoa(address), socket.inet_ntoa(netmask)), strict=False
+                )
+                if network.prefixlen < 31:  # /31 and /32 have no network or broadcast
+                    edges |= {network.network_address, network.broadcast_address}
+    return frozenset(edges)
+
+
 @lru_cache(maxsize=256)
 def is_local_address(name: str) -> bool:
-    """Whether `name` is an IP address of this machine (it can be bound to)."""
+    """Whether `name` is an IP address of this machine (it can be bound to, and it is
+    not a broadcast or a subnet's network address)."""
     try:
         address = ipaddress.ip_address(name)
     except ValueError:
         return False
     if address.is_unspecified or address.is_multicast:
+        return False
+    if address == LIMITED_BROADCAST or address in subnet_edges():
         return False
     family = socket.AF_INET6 if address.version == 6 else socket.AF_INET
     with socket.socket(family, socket.SOCK_DGRAM) as probe:
@@ -159,12 +205,16 @@ class Verdict:
     set_cookie: bool = False  # the page address carried the token: trade it for the cookie
 
 
-def check_origin(method: str, headers: Headers) -> str | None:
-    """Why a request from another origin is refused (None: same origin, or not a browser)."""
+def check_origin(method: str, headers: Headers, scheme: str = "http") -> str | None:
+    """Why a request from another origin is refused (None: same origin, or not a browser).
+    `scheme`: the request's own (`http`, `https`, or `ws`, `wss` for a WebSocket); an
+    origin must match it and the Host, so a page served over https elsewhere on this
+    host and port is another origin."""
     origin = headers.get("origin")
     if origin is not None:
-        scheme, _, authority = origin.partition("://")
-        if scheme not in ("http", "https") or authority.lower() != headers["host"].lower():
+        own_scheme = {"ws": "http", "wss": "https"}.get(scheme, scheme)
+        origin_scheme, _, authority = origin.partition("://")
+        if origin_scheme != own_scheme or authority.lower() != headers["host"].lower():
             return f"requests from {origin[:100]!r} are refused: use the page itself"
     site = headers.get("sec-fetch-site", "none")
     if site in ("same-origin", "none"):
@@ -176,8 +226,9 @@ def check_origin(method: str, headers: Headers) -> str | None:
     return "requests from other pages are refused: use the page itself"
 
 
-def check_request(access: Access, request: Request) -> Verdict:
-    """The guard's decision for one request: Host, then Origin, then the token."""
+def check_request(access: Access, request: HTTPConnection, method: str = "GET") -> Verdict:
+    """The guard's decision for one request (or WebSocket handshake, a GET): Host, then
+    Origin, then the token."""
     name = host_name(request.headers.get("host", ""))
     if name is None or not access.serves(name):
         shown = request.headers.get("host", "")[:100]
@@ -186,7 +237,7 @@ def check_request(access: Access, request: Request) -> Verdict:
             f"Host {shown!r} is not an address this server serves; open the address it printed "
             "(or start it with --allow-host NAME for another name of this machine)",
         )
-    refused = check_origin(request.method, request.headers)
+    refused = check_origin(method, request.headers, request.url.scheme)
     if refused is not None:
         return Verdict(403, refused)
     if access.token is None:
@@ -208,18 +259,21 @@ def _same(given: str, expected: str) -> bool:
 
 
 class AccessGuard:
-    """ASGI middleware: every request passes `check_request`; every reply gets the security
-    headers (no framing, no cross-origin embedding, no referrer)."""
+    """ASGI middleware: every request and WebSocket handshake passes `check_request`; every
+    reply gets the security headers (no framing, no cross-origin embedding, no referrer).
+    Only the server's own lifespan events pass unchecked."""
 
     def __init__(self, app: ASGIApp, access: Access):
         self.app, self.access = app, access
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
+        if scope["type"] == "lifespan":
             await self.app(scope, receive, send)
             return
-        request = Request(scope)
-        verdict = check_request(self.access, request)
+        if scope["type"] != "http":
+            await self._websocket(scope, receive, send)
+            return
+        verdict = check_request(self.access, HTTPConnection(scope), scope["method"])
         extra = list(SECURITY_HEADERS)
         if verdict.set_cookie:
             extra.append((b"set-cookie", self._cookie_header()))
@@ -230,11 +284,24 @@ class AccessGuard:
             await send(message)
 
         if verdict.status:
-            log.warning("refused %s %s: %s", request.method, scope["path"][:200], verdict.detail)
+            log_refusal(scope["method"], scope["path"], verdict.status, verdict.detail)
             response = JSONResponse({"detail": verdict.detail}, verdict.status)
             await response(scope, receive, send_with_headers)
             return
         await self.app(scope, receive, send_with_headers)
+
+    async def _websocket(self, scope: Scope, receive: Receive, send: Send) -> None:
+        """A WebSocket handshake gets the same checks (the page opens none: the app then
+        refuses it itself); anything else is refused outright."""
+        if scope["type"] != "websocket":
+            raise RuntimeError(f"unsupported ASGI scope {loggable(str(scope['type']), 40)}")
+        verdict = check_request(self.access, HTTPConnection(scope))
+        if not verdict.status:
+            await self.app(scope, receive, send)
+            return
+        log_refusal("WEBSOCKET", scope["path"], verdict.status, verdict.detail)
+        await receive()  # the handshake's websocket.connect
+        await send({"type": "websocket.close", "code": 1008})  # policy violation
 
     def _cookie_header(self) -> bytes:
         value = self.access.session_value()

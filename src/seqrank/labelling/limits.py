@@ -24,7 +24,7 @@ from starlette.datastructures import Headers
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from seqrank.labelling.access import SAFE_METHODS
+from seqrank.labelling.access import SAFE_METHODS, log_refusal
 
 MAX_BODY_BYTES = 64 * 1024
 MAX_ID = 2**53 - 1  # the largest integer JavaScript's numbers hold exactly
@@ -63,7 +63,7 @@ class BodyRules:
             return
         refusal = self._header_refusal(Headers(scope=scope))
         if refusal is not None:
-            await refusal(scope, receive, send)
+            await self._refuse(refusal, scope, receive, send)
             return
         body = bytearray()
         more = True
@@ -73,24 +73,31 @@ class BodyRules:
                 return  # the client has gone: nobody to answer
             body += message.get("body", b"")
             if len(body) > self.limit:
-                await self._too_large()(scope, receive, send)
+                await self._refuse(self._too_large(), scope, receive, send)
                 return
             more = message.get("more_body", False)
         await self.app(scope, _replay(bytes(body), receive), send)
 
-    def _header_refusal(self, headers: Headers) -> JSONResponse | None:
+    @staticmethod
+    async def _refuse(refusal: tuple[int, str], scope: Scope, receive: Receive, send: Send) -> None:
+        """Refusals are logged as the access guard's are (SECURITY.md)."""
+        status, detail = refusal
+        log_refusal(scope["method"], scope["path"], status, detail)
+        await error(status, detail)(scope, receive, send)
+
+    def _header_refusal(self, headers: Headers) -> tuple[int, str] | None:
         media_type = headers.get("content-type", "").partition(";")[0].strip().lower()
         if media_type != "application/json":
-            return error(415, "send the body as JSON, with Content-Type: application/json")
+            return 415, "send the body as JSON, with Content-Type: application/json"
         length = headers.get("content-length")
         if length is not None and not length.isdigit():
-            return error(400, "Content-Length must be a number of bytes")
+            return 400, "Content-Length must be a number of bytes"
         if length is not None and int(length) > self.limit:
             return self._too_large()
         return None
 
-    def _too_large(self) -> JSONResponse:
-        return error(413, f"the body is larger than {self.limit} bytes")
+    def _too_large(self) -> tuple[int, str]:
+        return 413, f"the body is larger than {self.limit} bytes"
 
 
 def _replay(body: bytes, receive: Receive) -> Receive:
