@@ -204,8 +204,7 @@ ASKING_ONLY = frozenset(
         *(f.name for f in fields(TrainConfig) if f.name.startswith(("surf_", "rime_"))),
     }
 )
-# Read only when the reward model learns from labels (a no-feedback run's never does; RIME's
-# warm start fits it in pre-training with the optimizer, `reward_lr`):
+# Read only when the reward model learns from labels (a no-feedback run's never does):
 REWARD_FITTING = frozenset({"reward_minibatch", "reward_epochs", "reward_stop_accuracy"})
 # Read only by pre-training, the critic reset after it and the reward model, none of which
 # the true-reward agent has:
@@ -224,17 +223,15 @@ PRETRAINING_AND_REWARD_MODEL = REWARD_FITTING | {
 REWARD_MODEL_SIZES = frozenset({"reward_ensemble", "reward_hidden", "reward_layers"})
 
 
-def unread_settings(
-    reward: RewardSignal, warm_start: bool = False, start_from: bool = False
-) -> frozenset[str]:
+def unread_settings(reward: RewardSignal, start_from: bool = False) -> frozenset[str]:
     """The settings a run that learns from `reward` never reads (none for a learned
-    reward); `warm_start` and `start_from` are the run's own (a run started from a saved
-    one checks the saved reward model's sizes against its own)."""
+    reward); `start_from`: the run's own (a run started from a saved one checks the saved
+    reward model's sizes against its own)."""
     if reward is RewardSignal.TRUE:
         unread = ASKING_ONLY | PRETRAINING_AND_REWARD_MODEL
         return unread - REWARD_MODEL_SIZES if start_from else unread
-    if reward is RewardSignal.NONE:
-        return ASKING_ONLY | REWARD_FITTING | (set() if warm_start else {"reward_lr"})
+    if reward is RewardSignal.NONE:  # (its untrained model is fit to nothing: no warm start)
+        return ASKING_ONLY | REWARD_FITTING | {"warm_start", "reward_lr"}
     return frozenset()
 
 

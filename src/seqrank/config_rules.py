@@ -136,6 +136,20 @@ def check_baseline(config: TrainConfig) -> None:
             f"{setting('teacher')} '{config.teacher}' answers questions; {setting('reward')} "
             f"'{config.reward}' asks none: leave {setting('teacher')} out"
         )
+    given = [name for name, default in LEARNING_FROM_ANSWERS if getattr(config, name) != default]
+    if given:
+        names = " and ".join(setting(name) for name in given)
+        act, them = ("act", "them") if len(given) > 1 else ("acts", "it")
+        raise SettingError(
+            f"{names} {act} on what answers teach the reward model; {setting('reward')} "
+            f"'{config.reward}' asks for none: leave {them} out"
+        )
+
+
+# the options of learning from answers, and their defaults (a baseline keeps them): the
+# reward learner and the augmentation act on answers; RIME's warm start prepares the
+# reward model for them
+LEARNING_FROM_ANSWERS = (("reward_learner", "plain"), ("augment", "full"), ("warm_start", 0))
 
 
 # the settings a replayed label file fixes, as its messages name them

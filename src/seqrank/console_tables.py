@@ -165,7 +165,12 @@ def print_simulation(out: Console, results: Sequence[CellResult]) -> None:
         "cycles",
     ):
         left = header in ("scheme", "teacher", "augment")
-        table.add_column(header, justify="left" if left else "right")
+        # a teacher's name with knobs folds onto more lines rather than being cut: two
+        # teachers that differ in a knob's value must stay apart on a narrow terminal
+        if header == "teacher":
+            table.add_column(header, justify="left", overflow="fold")
+        else:
+            table.add_column(header, justify="left" if left else "right")
     for r in results:
         table.add_row(
             r.scheme,

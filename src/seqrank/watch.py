@@ -4,14 +4,16 @@ and a contact sheet PNG of frames across the episodes (like the paper's Figures 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 
 from seqrank.agents.protocol import Policy
-from seqrank.envs import SimEnv, canonical_task, make_env
+from seqrank.envs import SimEnv, make_env
+from seqrank.envs.scoring import Metric, task_metric
 from seqrank.training.state import episode_seed
 from seqrank.video import encode_mp4
 
@@ -25,7 +27,7 @@ GAP = "  "  # between the fields of a line
 class Episode:
     frames: np.ndarray  # (T, size + caption height, size, 3) uint8, captioned
     total: float
-    success: bool
+    success: bool | None  # None where the task has no success signal (as reports score it)
 
 
 @dataclass(frozen=True)
@@ -194,6 +196,12 @@ def contact_sheet(episodes: list[Episode], path: Path, title: str, per_episode: 
     return path
 
 
+def _has_success(task: str, rows: list[dict[str, Any]]) -> bool:
+    """Whether success is shown: where `seqrank report` scores the task by it."""
+    rates = [row.get("eval_success_rate") or 0.0 for row in rows if row.get("kind") == "eval"]
+    return task_metric(task, rates) is Metric.SUCCESS
+
+
 def watch(
     run_dir: Path, episodes: int, out: Path, size: int = 256, fps: int = 30
 ) -> tuple[list[Episode], Path, Path]:
@@ -202,11 +210,12 @@ def watch(
     from seqrank.training.agent_factory import load_policy
     from seqrank.training.runs import RunDir
 
-    config = RunDir.open(run_dir).read_config()
+    run = RunDir.open(run_dir)
+    config = run.read_config()
     env = make_env(config.task, config.seed)
     env.use_fast_rendering()  # no shadows: 7x faster, as the labelling clips
     policy = load_policy(run_dir, env)
-    shows = canonical_task(config.task)[0] != "dmc"  # success: Meta-World and block:place
+    shows = _has_success(config.task, run.read_metrics())
     try:
         raw = [
             play(policy, env, episode_seed(config.seed, 2, k), size, f"episode {k + 1}", shows)
@@ -215,6 +224,8 @@ def watch(
     finally:
         env.close()  # the GL context goes before the interpreter does
     played = captioned(raw, size)
+    if not shows:
+        played = [replace(e, success=None) for e in played]
     out.mkdir(parents=True, exist_ok=True)
     video = out / "watch.mp4"
     encode_mp4(np.concatenate([e.frames for e in played]), video, fps)

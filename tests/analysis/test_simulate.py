@@ -79,3 +79,25 @@ def test_simulate_names_a_bad_teacher_in_one_line_and_writes_nothing(tmp_path, c
     assert _simulate(tmp_path, "human")[0] == 2
     assert "unknown teacher 'human'; accepted: oracle, mistake" in capsys.readouterr().err
     assert not (tmp_path / "sim").exists()
+
+
+def test_the_terminal_table_keeps_teachers_that_differ_in_a_knob_apart():
+    """On a narrow terminal a long teacher name folds onto more lines; it is never cut to
+    a prefix that two teachers share ("mistake,e…")."""
+    from rich.console import Console
+
+    from seqrank.console_tables import print_simulation
+
+    teachers = ["mistake,eps_mistake=0.2", "mistake,eps_mistake=0.3"]
+    results = simulate(["root"], teachers, 10, 2, seed=0)
+    console = Console(width=70, record=True)
+    print_simulation(console, results)
+    shown: list[str] = []
+    for line in console.export_text().splitlines():
+        cells = line.split("│")
+        if len(cells) < 3:
+            continue
+        if cells[1].strip():  # a row's first line names its scheme
+            shown.append("")
+        shown[-1] += cells[2].strip()
+    assert shown == teachers

@@ -98,6 +98,18 @@ CASES = [
         "--query-episodes 30 exceeds --episodes-kept 20: segments are cut from the",
     ),
     ([*TRAIN, "--reward", "true", "--hybrid-replay", "0.5"], "--reward 'true' asks none: leave"),
+    (
+        [*TRAIN, "--reward", "true", "--reward-learner", "rime"],
+        "--reward-learner acts on what answers teach the reward model; --reward 'true' asks",
+    ),
+    (
+        [*TRAIN, "--reward", "none", "--augment", "checked", "--warm-start", "1"],
+        "--augment and --warm-start act on what answers teach the reward model; --reward 'none'",
+    ),
+    (
+        [*TRAIN, "--reward", "true", "--augment", "checked"],
+        "--reward 'true' asks for none: leave it",
+    ),
     ([*TRAIN, "--parts", "low", "--query-episodes", "4"], "--query-episodes would drop some"),
     # the reward learners (SURF, RIME) and the warm start
     ([*TRAIN, "--reward-learner", "best"], "unknown --reward-learner 'best'; accepted: plain"),

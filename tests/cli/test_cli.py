@@ -131,7 +131,7 @@ def test_simulate_takes_the_re_check_settings_of_checked(tmp_path, capsys):
             ["simulate", "--schemes", "sequential,tree"],
             "unknown scheme 'tree'; accepted: pairwise, sequential, root, ranked",
         ),
-        (["simulate", "--teachers", "perfect"], "unknown teacher preset 'perfect'; accepted:"),
+        (["simulate", "--teachers", "perfect"], "unknown teacher 'perfect'; accepted: oracle"),
         (["simulate", "--sessions", "1"], "1 is out of range; accepted: 2 to 1000000"),
         (["simulate", "--recheck-gain", "0"], "recheck settings gain 0, twice_gain 5"),
         (["fly"], "invalid choice: 'fly'"),

@@ -91,9 +91,10 @@ unsup_steps = 600
 
 
 def test_a_budget_sweep_plans_each_baseline_once_per_task_and_seed(tmp_path, capsys):
-    """Budget, reward training and learner variants leave one true-reward and one
-    no-feedback run per seed; a variant that changes what the no-feedback run uses (its
-    untrained ensemble, warm start, pre-training length) gets one of its own."""
+    """Budget, reward training and learner variants (RIME's warm start among them: a
+    baseline fits its reward model to nothing) leave one true-reward and one no-feedback run
+    per seed; a variant that changes what the no-feedback run uses (its untrained ensemble,
+    pre-training length) gets one of its own."""
     spec = write_spec(tmp_path / "budgets.toml", tmp_path / "out", TINY, BUDGETS, seeds=2)
     baselines = [n for n in listed(spec, capsys) if "root_" not in n]
     assert sorted(baselines) == sorted(
@@ -103,7 +104,6 @@ def test_a_budget_sweep_plans_each_baseline_once_per_task_and_seed(tmp_path, cap
             "true-reward",
             "no-feedback",
             "no-feedback_ensemble5",
-            "no-feedback_warm",
             "no-feedback_short",
         )
     )
@@ -160,7 +160,10 @@ def test_a_folder_with_baselines_under_a_variants_name_keeps_them(tmp_path, caps
     learned = [name for name in planned if "root_" in name]
     for name in learned:  # only the baselines are left to run
         finish(runs / name, planned[name])
+    capsys.readouterr()
     assert main(["sweep", str(spec)]) == 0
+    planned_runs = len(planned)  # two learned runs and two baselines, all finished now
+    assert f"sweep grid: {planned_runs} finished; state in " in capsys.readouterr().out
     recorded = {r["name"]: r for r in json.loads((sweep.out / "sweep.json").read_text())["runs"]}
     assert recorded[f"{FOLDER}/true-reward_seed0"]["outcome"] == "skipped"
     assert recorded[f"{FOLDER}/no-feedback_seed0"]["outcome"] == "trained"

@@ -148,6 +148,10 @@ def test_qpa_variants_and_baselines_share_a_sweep_with_one_baseline_run_each():
             {"tasks": ["walker_walk"], "schemes": ["root"], "overrides": {"precision": "bf16"}},
             "precision 'bf16' needs the fast path",  # path auto on a CPU is the reference
         ),
+        (  # teachers with nothing to teach: only the baselines would run, without a word
+            {"tasks": ["walker_walk"], "teachers": ["mistake"], "baselines": ["true"]},
+            "teachers are given but no schemes",
+        ),
     ],
 )
 def test_bad_sweep_files_name_the_problem(data, message):

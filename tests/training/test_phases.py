@@ -157,7 +157,8 @@ def test_teacher_specs_reach_every_b_pref_knob():
     ("value", "message"),
     [
         ("perfect", "unknown teacher 'perfect'; accepted: oracle, mistake"),
-        ("oracle,temperature=2", "is not knob=value; knobs: beta, gamma"),
+        ("oracle,temperature=2", "unknown knob 'temperature'; knobs: beta, gamma"),
+        ("oracle,beta=", "'beta=' is not knob=value"),
         ("beta=high", "beta must be a number, got 'high'"),
         ("gamma=1.5", "gamma must be in"),
         ("replay:", "needs a file"),

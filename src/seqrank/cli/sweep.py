@@ -116,7 +116,9 @@ def _run(
     stop = StopRequests()
     with _counting_signals(stop):
         status = _run_with_progress(sweep, _backend(args), err, stop)
-    out.print(f"sweep {sweep.name}: {status.counts()}; state in {sweep.out / 'sweep.json'}")
+    out.print(
+        f"sweep {sweep.name}: {_counted(status.counts())}; state in {sweep.out / 'sweep.json'}"
+    )
     if status.stopped:
         err.print(
             "interrupted: the running runs stopped (local: at an episode end with a "
@@ -132,6 +134,11 @@ def _run(
             highlight=False,
         )
     return 1 if failed else 0
+
+
+def _counted(counts: dict[Any, int]) -> str:
+    """`3 finished, 1 queued`: how many runs are in each state."""
+    return ", ".join(f"{n} {state}" for state, n in sorted(counts.items()))
 
 
 @contextlib.contextmanager
@@ -210,8 +217,7 @@ def _run_with_progress(sweep: Any, backend: Any, err: Console, stop: Any) -> Any
         def event(status: Any, state: Any) -> None:
             counts = status.counts()
             done = counts.get(RunStatus.FINISHED, 0) + counts.get(RunStatus.FAILED, 0)
-            text = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
-            progress.update(bar, completed=done, counts=text)
+            progress.update(bar, completed=done, counts=_counted(counts))
             detail = f": {state.error}" if state.state is RunStatus.FAILED else ""
             if state.state is RunStatus.QUEUED and state.error:
                 detail = f" (retry {state.attempts - 1}: {state.error})"

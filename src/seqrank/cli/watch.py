@@ -17,8 +17,9 @@ def add_parser(commands: Any) -> None:
         "watch",
         help="look at a trained agent: an mp4 and a contact sheet of its episodes",
         description="Play N deterministic episodes with the policy of a run's last checkpoint, "
-        "write them as an mp4 (the running true return, and success on Meta-World and "
-        "block:place, under each frame) and a contact sheet PNG, and print each return.",
+        "write them as an mp4 (the running true return, and success where the task has one, "
+        "as `seqrank report` scores it: Meta-World, block:place, a Gymnasium task whose runs "
+        "record a success, under each frame) and a contact sheet PNG, and print each return.",
     )
     watch.add_argument("run", type=Path, help="a run directory (with a checkpoint)")
     watch.add_argument(
@@ -48,6 +49,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
     for k, episode in enumerate(episodes, 1):
-        out.print(f"episode {k}: return {episode.total:.1f}, success {episode.success}")
+        success = "" if episode.success is None else f", success {episode.success}"
+        out.print(f"episode {k}: return {episode.total:.1f}{success}")
     out.print(f"wrote {video} and {sheet}", highlight=False)
     return 0

@@ -228,10 +228,12 @@ def split_teachers(text: str) -> list[str]:
 def _knob(part: str, value: str) -> tuple[str, float | str]:
     key, _, text = part.partition("=")
     key = key.strip()
-    if key not in KNOBS or not text:
+    if key not in KNOBS:
         raise SettingError(
-            f"{setting('teacher')} {value!r}: {part!r} is not knob=value; knobs: {', '.join(KNOBS)}"
+            f"{setting('teacher')} {value!r}: unknown knob {key!r}; knobs: {', '.join(KNOBS)}"
         )
+    if not text:
+        raise SettingError(f"{setting('teacher')} {value!r}: {part!r} is not knob=value")
     if key == "tie_rule":
         return key, text.strip()
     try:

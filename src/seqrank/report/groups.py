@@ -36,8 +36,6 @@ SAME_METHOD = {
     "reward_learner",
     "warm_start",
 }
-# settings that mark a learned method's name (`+warm`) but not a baseline's
-NAME_MARKS = {"augment", "reward_learner", "warm_start"}
 # settings only one reward learner reads: runs of another learner may hold any value (or,
 # made before the setting existed, none)
 LEARNER_PREFIXES = {"surf": "surf_", "rime": "rime_"}
@@ -87,11 +85,11 @@ def _differing(members: list[RunResult]) -> list[str]:
 
 def _never_splitting(run: RunResult) -> set[str]:
     """The settings that never split the cell of `run`: for a baseline, also those it never
-    reads, but not the marks its name does not carry (a no-feedback warm start does)."""
+    reads."""
     if not run.baseline:
         return SAME_METHOD
-    warm = bool(run.settings.get("warm_start"))
-    return (SAME_METHOD - NAME_MARKS) | unread_settings(RewardSignal(run.reward), warm)
+    start_from = bool(run.settings.get("start_from"))
+    return SAME_METHOD | unread_settings(RewardSignal(run.reward), start_from)
 
 
 def one_run_per_seed(

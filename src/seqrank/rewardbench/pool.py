@@ -93,8 +93,9 @@ def check_pool_size(episodes: int, what: str) -> None:
         raise ValueError(
             f"{what} has {episodes} episode{'s' * (episodes != 1)}; a pool needs at least "
             f"{MIN_EPISODES}, so that one is held out to measure on (every {HELDOUT_EVERY}th "
-            f"by return, from rank {MIN_EPISODES} on): add --random-episodes or take a run "
-            "with more finished episodes"
+            f"by return, from rank {MIN_EPISODES} on): build it with more episodes "
+            "(`reward-bench pool` with --random-episodes, or from a run with more finished "
+            "episodes)"
         )
 
 

@@ -111,6 +111,11 @@ def expand(data: dict[str, Any], source: str = "<sweep>") -> Sweep:
         raise ValueError(f"{source}: unknown key {unknown[0]!r}; accepted: {', '.join(TOP_KEYS)}")
     baselines = _baselines(data.get("baselines", []), source)
     if baselines and "schemes" not in data:
+        if "teachers" in data:  # they would teach nothing: no learned run is planned
+            raise ValueError(
+                f"{source}: teachers are given but no schemes, so only the baselines would "
+                "run; give schemes (for a replay teacher, the scheme its label file recorded)"
+            )
         data = {**data, "schemes": []}
     axes = {key: _names(data, key, source) for key in AXES}
     seeds = _seeds(data.get("seeds", 1), source)
@@ -220,8 +225,7 @@ class _Planned:
 
 def baseline_unused(reward: RewardSignal, settings: dict[str, Any]) -> frozenset[str]:
     """The settings that never reach a baseline run of `reward` with these `settings`."""
-    warm_start, start_from = bool(settings.get("warm_start")), bool(settings.get("start_from"))
-    return unread_settings(reward, warm_start, start_from)
+    return unread_settings(reward, bool(settings.get("start_from")))
 
 
 def unused_settings(config: TrainConfig) -> frozenset[str]:
