@@ -188,7 +188,7 @@ def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
     too): segments fit an episode, the replay buffer (`kept` steps of a fine-tuned run's
     plus the run's) fits memory; returns where and how the run trains."""
     # a fine-tuning run starts with the saved run's episodes: its first session needs none
-    _check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
+    check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
     runtime = resolve_runtime(config.device, config.path, config.precision, env.discrete)
     # the reference path keeps the buffer on the host and copies each batch over
     storage = runtime.device if runtime.fast else torch.device("cpu")
@@ -196,7 +196,7 @@ def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
     return runtime
 
 
-def _check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
+def check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
     """Segments are cut from complete episodes, the first ones by the first session (a
     task with terminal states may end episodes sooner: its first session waits for one)."""
     if not config.reward.asks:
