@@ -4,7 +4,7 @@ builds it (`seqrank.registration`): `render()` gives RGB frames with
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -16,7 +16,7 @@ FRAME_SIZE = 256  # pixels a side of a rendered frame, unless width and height a
 
 
 class TaskEnv(gym.Env[np.ndarray, np.ndarray]):
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}  # noqa: RUF012
 
     def __init__(
         self,
@@ -39,9 +39,10 @@ class TaskEnv(gym.Env[np.ndarray, np.ndarray]):
         return self.task.reset(seed=seed, options=options)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        return self.task.step(action)
+        obs, reward, terminated, truncated, info = self.task.step(action)
+        return obs, float(reward), terminated, truncated, info
 
-    def render(self) -> np.ndarray | None:  # type: ignore[override]
+    def render(self) -> np.ndarray | None:
         if self.render_mode is None:
             return None
         return self.task.render_frame(self.width, self.height)

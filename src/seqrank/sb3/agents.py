@@ -37,8 +37,9 @@ def reset_critic(model: BaseAlgorithm, updates: int) -> None:
     `SAC.reset_critic`); then `updates` agent updates on the relabelled buffer."""
     critic, target, optimizer = critic_parts(model)
     for module in critic.modules():
-        if module is not critic and hasattr(module, "reset_parameters"):
-            module.reset_parameters()
+        reset = getattr(module, "reset_parameters", None)
+        if module is not critic and callable(reset):
+            reset()
     target.load_state_dict(critic.state_dict())
     optimizer.state.clear()
     if updates and isinstance(model, OffPolicyAlgorithm):

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
@@ -67,11 +68,13 @@ class PreferenceFeedback(BaseCallback):
         name, preset = task_names(env)
         spec = teacher if isinstance(teacher, str) else "oracle"
         human = spec == "human"
-        extra = {"record_states": 1} if human else {}
+        extra: dict[str, Any] = {"record_states": 1} if human else {}
+        if pretrain is False:  # no pre-training phase: the first session after seed_steps
+            extra["unsup_steps"] = 0
         self.given = feedback_config(name, preset, scale, {"teacher": spec, **settings, **extra})
         _check_options(n_envs, human, label_dir, env)
-        self.options = {"pretrain": pretrain, "reset_critic": reset_critic, "n_envs": n_envs}
-        self.options["wait_for_feedback"] = wait_for_feedback
+        self.options: dict[str, Any] = {"pretrain": pretrain, "reset_critic": reset_critic}
+        self.options.update(n_envs=n_envs, wait_for_feedback=wait_for_feedback)
         self.config = config = self.given
         task = describe_task(env, n_envs, config.seed)
         if task.episode_length is not None:
@@ -143,7 +146,8 @@ class PreferenceFeedback(BaseCallback):
         self.critic_reset = pebble_default(kind, reset, not off_policy, "reset_critic")
         if not self.pretraining and self.config.unsup_steps:
             self.config = without_pretraining(self.config)
-        if off_policy:
+        if isinstance(model, OffPolicyAlgorithm):
+            assert model.replay_buffer is not None, "the agent's replay buffer is made with it"
             true = self.pending.pop("true", None)
             self.table = ReplayTable(model.replay_buffer, self.run.device, true)
         else:
