@@ -34,7 +34,7 @@ def test_an_id_makes_the_task_with_rgb_frames(env_id, obs_dim):
     again, _ = env.reset(seed=3)
     np.testing.assert_array_equal(obs, again)  # an episode is a function of its seed
     assert obs.shape == (obs_dim,) and obs.dtype == np.float32
-    _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    _, reward, terminated, _, info = env.step(env.action_space.sample())
     assert isinstance(reward, float) and not terminated and "success" in info
     frame = env.render()
     assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
@@ -44,6 +44,7 @@ def test_an_id_makes_the_task_with_rgb_frames(env_id, obs_dim):
 
 
 def test_gymnasium_alone_finds_the_ids_by_module_prefix():
-    code = "import gymnasium; print(gymnasium.make('seqrank:seqrank/cartpole_swingup-v0').reset(seed=0)[0].shape)"
+    make = "gymnasium.make('seqrank:seqrank/cartpole_swingup-v0')"
+    code = f"import gymnasium; print({make}.reset(seed=0)[0].shape)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.strip() == "(5,)", done.stderr

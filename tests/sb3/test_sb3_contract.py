@@ -105,7 +105,8 @@ def test_reset_critic_gives_fresh_critic_weights_its_target_a_copy_and_keeps_the
     agents.reset_critic(model, updates=0)
     for before, now in zip(critic_before, model.critic.parameters(), strict=True):
         assert not torch.equal(before, now)
-    for critic, target in zip(model.critic.parameters(), model.critic_target.parameters()):
+    pairs = zip(model.critic.parameters(), model.critic_target.parameters(), strict=True)
+    for critic, target in pairs:
         assert torch.equal(critic, target)
     for before, now in zip(actor_before, model.actor.parameters(), strict=True):
         assert torch.equal(before, now)

@@ -10,24 +10,24 @@ Before the first session an off-policy agent pre-trains on the state-entropy rew
 
 from __future__ import annotations
 
-import random
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
+import seqrank.sb3.agents as agents
+import seqrank.sb3.saving as saving
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
-from seqrank.sb3 import agents, saving
 from seqrank.sb3.build import describe_task, make_teacher, task_names
 from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, canonical_actions, task_vec_env
 from seqrank.sb3.run import FeedbackRun
 from seqrank.sb3.settings import feedback_config, pebble_default, without_pretraining
+from seqrank.sb3.streams import restore_rng
 from seqrank.sb3.tables import EpisodeTable, ReplayTable
 from seqrank.training.feedback_phase import feedback_step, learn_from_session
 from seqrank.training.runtime import resolve_device
@@ -158,7 +158,7 @@ class PreferenceFeedback(BaseCallback):
 
     def _on_training_start(self) -> None:
         if "global_rng" in self.pending:
-            _restore_rng(self.pending.pop("global_rng"), self.model)
+            restore_rng(self.pending.pop("global_rng"), self.model)
         if self.pretraining and self.run.counters.sessions == 0:
             assert isinstance(self.table, ReplayTable)
             self.entropy.install(self.table)
@@ -214,21 +214,3 @@ def _check_options(n_envs: int, human: bool, label_dir: Any, env: Any) -> None:
             f"{setting('teacher')} 'human' answers on the labelling page: give a task name "
             "(its clips are re-rendered) and label_dir, the folder of the label database"
         )
-
-
-def capture_rng(model: Any) -> dict[str, Any]:
-    """The global random streams SB3 draws from (and its action space's), so a loaded run
-    continues them where the saved one stopped."""
-    state = {"torch": torch.get_rng_state(), "numpy": np.random.get_state()}
-    state["random"] = random.getstate()
-    if model is not None:
-        state["action_space"] = model.action_space.np_random.bit_generator.state
-    return state
-
-
-def _restore_rng(state: dict[str, Any], model: Any) -> None:
-    torch.set_rng_state(state["torch"])
-    np.random.set_state(state["numpy"])
-    random.setstate(state["random"])
-    if "action_space" in state:
-        model.action_space.np_random.bit_generator.state = state["action_space"]

@@ -16,6 +16,7 @@ from seqrank.config import TrainConfig
 from seqrank.dirs import check_folder
 from seqrank.feedback.label_file import store_lines
 from seqrank.sb3.settings import FEEDBACK_SETTINGS
+from seqrank.sb3.streams import capture_rng
 from seqrank.sb3.tables import ReplayTable
 
 if TYPE_CHECKING:
@@ -25,8 +26,6 @@ SETTINGS, STATE, LABELS, METRICS = "settings.json", "feedback.pt", "labels.jsonl
 
 
 def save(feedback: PreferenceFeedback, folder: Path) -> None:
-    from seqrank.sb3.callback import capture_rng
-
     check_folder(folder, "feedback folder")
     folder.mkdir(parents=True, exist_ok=True)
     run, model = feedback.run, getattr(feedback, "model", None)
