@@ -40,15 +40,15 @@ class Break:
 BREAKS = (
     Break(
         "loop: the first session's critic reset skipped",
-        "training/loop.py",
-        "    if first:\n        reset_critic(",
-        "    if False:\n        reset_critic(",
+        "training/feedback_phase.py",
+        "    if request.session == 0:\n        reset_critic()",
+        "    if False:\n        reset_critic()",
         ("tests/training/test_session_effects.py",),
     ),
     Break(
         "loop: no relabelling after a session",
-        "training/loop.py",
-        "c.asked)\n    t.reward.relabel()\n",
+        "training/feedback_phase.py",
+        "c.asked)\n    reward.relabel()\n",
         "c.asked)\n",
         ("tests/training/test_session_effects.py",),
     ),

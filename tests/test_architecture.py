@@ -48,6 +48,16 @@ def test_lower_layers_import_nothing_from_the_web_app_or_the_cli(layer):
             assert not above, f"{module} imports {above}"
 
 
+def test_the_sb3_layer_sits_above_training_and_the_web_app_beside_the_cli():
+    """`seqrank.sb3` uses training, feedback and labelling; nothing of seqrank imports it,
+    and it imports nothing of the CLI."""
+    for module, targets in GRAPH.items():
+        if not module.startswith("seqrank.sb3"):
+            assert not [t for t in targets if t.startswith("seqrank.sb3")], module
+        else:
+            assert not [t for t in targets if t.startswith("seqrank.cli")], module
+
+
 def test_feedback_does_not_import_the_run_config():
     for module, targets in GRAPH.items():
         if module.startswith("seqrank.feedback"):

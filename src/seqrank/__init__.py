@@ -9,7 +9,8 @@ The public Python API (documented in the README; `help(seqrank.<name>)`):
   `FeedbackSource` (the protocol a custom source implements), `SessionRequest`;
 - looking: `load_run`, `Run`, `make_env`.
 
-Names are loaded on first use, so `import seqrank` stays light.
+Names are loaded on first use, so `import seqrank` stays light. It registers seqrank's
+tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`, `seqrank.registration`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,10 @@ from __future__ import annotations
 from importlib import import_module
 from typing import Any
 
+from seqrank.registration import register_tasks
+
 __version__ = "0.1.0"
+register_tasks()
 
 _PUBLIC = {
     "run_scheme": "seqrank.api",

@@ -44,6 +44,20 @@ class BatchSource(Protocol):
         ...
 
 
+class RewardTable(Protocol):
+    """Stored transitions whose learned reward follows the reward model: seqrank's replay
+    buffer, or another agent's (`seqrank.sb3`)."""
+
+    def relabel(self, reward_fn: RewardFn, chunk: int = 8192) -> None:
+        """Recompute the learned reward of every stored transition."""
+        ...
+
+    def reward_sample(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(learned, true) per-step rewards of up to `count` stored transitions drawn
+        without replacement."""
+        ...
+
+
 STAGING_ROWS = 16  # pinned host rows the fast path's adds cycle through
 COLUMNS = ("obs", "action", "next_obs", "true_reward", "reward", "not_done")
 
@@ -208,6 +222,10 @@ class ReplayBuffer:
                 obs = self.obs[start:stop].to(self.device)
                 action = self.action[start:stop].to(self.device)
                 self.reward[start:stop] = reward_fn(obs, action).to(self.storage)
+
+    def reward_sample(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        idx = rng.choice(self.size, size=min(self.size, count), replace=False)
+        return self.reward[idx, 0].cpu().numpy(), self.true_reward[idx, 0].cpu().numpy()
 
     def state_dict(self) -> dict[str, Any]:
         n = self.size

@@ -8,7 +8,7 @@ import numpy as np
 import torch
 
 from seqrank.agents.protocol import Policy
-from seqrank.buffer import ReplayBuffer
+from seqrank.buffer import RewardTable
 from seqrank.envs import SimEnv
 from seqrank.episodes import EpisodeStore
 from seqrank.reward.model import RewardModel
@@ -43,23 +43,21 @@ def evaluate_policy(
 def reward_quality(
     reward_model: RewardModel,
     episodes: EpisodeStore,
-    replay: ReplayBuffer,
+    replay: RewardTable,
     pairs: int,
     segment_length: int,
     rng: np.random.Generator,
 ) -> dict[str, float]:
     """Held-out accuracy on true preferences of fresh random segment pairs, and the
-    Pearson correlation of learned and true per-step reward over the replay buffer."""
+    Pearson correlation of learned and true per-step reward over a sample of the replay
+    buffer."""
     sample = episodes.sample_segments(2 * pairs, segment_length, rng)
     predicted = reward_model.member_returns(sample.features).mean(0)
     truth = sample.rewards.sum(1)
     a, b = np.arange(0, len(truth), 2), np.arange(1, len(truth), 2)
     strict = truth[a] != truth[b]
     agree = (predicted[a] > predicted[b]) == (truth[a] > truth[b])
-    size = len(replay)
-    idx = rng.choice(size, size=min(size, CORRELATION_SAMPLE), replace=False)
-    learned = replay.reward[idx, 0].cpu().numpy()
-    true = replay.true_reward[idx, 0].cpu().numpy()
+    learned, true = replay.reward_sample(CORRELATION_SAMPLE, rng)
     corr = float(np.corrcoef(learned, true)[0, 1]) if learned.std() and true.std() else 0.0
     return {
         "reward_heldout_accuracy": float(agree[strict].mean()) if strict.any() else 1.0,

@@ -25,9 +25,9 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from seqrank.choices import RewardSignal
-from seqrank.feedback.session import store_session
 from seqrank.training import metrics
 from seqrank.training.critic_reset import reset_critic
+from seqrank.training.feedback_phase import feedback_step, learn_from_session
 from seqrank.training.sessions import AnsweredSession
 from seqrank.training.state import episode_seed
 
@@ -114,10 +114,7 @@ def learn(t: Trainer) -> None:
             reset_critic(t.agent, t.replay, config.updates_after_reset, config.batch, t.generator)
         t.update(c.step, False)
         return
-    finish_session(t, t.sessions.collect())  # a session answered in the background
-    feedback_open = t.sessions.is_open(c)
-    if t.sessions.due(c, feedback_open):
-        finish_session(t, t.sessions.ask(c))
+    feedback_open = feedback_step(t.sessions, c, lambda answered: finish_session(t, answered))
     t.update(c.step, feedback_open)
 
 
@@ -131,19 +128,12 @@ def finish_session(t: Trainer, answered: AnsweredSession | None) -> None:
 
 
 def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
-    config, c = t.config, t.counters
-    first = answered.request.session == 0
-    request = answered.request
-    outcome = store_session(answered.segments, answered.record, t.labels, request)
-    metrics.count_session(c, outcome.stats)
-    result = t.reward.train(config.seed, c.sessions, c.asked)
-    t.reward.relabel()
-    if first:
+    config = t.config
+
+    def reset() -> None:
         reset_critic(t.agent, t.replay, config.updates_after_reset, config.batch, t.generator)
-    quality = t.reward.quality(config.seed, c.sessions)
-    row = metrics.feedback_row(
-        c, outcome.stats, result, len(t.labels), quality, answered.request.episodes
-    )
+
+    row = learn_from_session(answered, t.labels, t.counters, t.reward, config.seed, reset)
     t.run_dir.append_metrics(row)
 
 

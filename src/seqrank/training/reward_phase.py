@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from seqrank.buffer import ReplayBuffer, RewardFn
+from seqrank.buffer import RewardFn, RewardTable
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.labels import LabelStore
 from seqrank.reward.learners import give_unlabelled
@@ -32,7 +32,7 @@ class RewardLearning:
         self,
         reward_model: RewardModel,
         labels: LabelStore,
-        replay: ReplayBuffer,
+        replay: RewardTable,
         episodes: EpisodeStore,
         settings: RewardSettings,
         generator: torch.Generator,

@@ -20,12 +20,8 @@ from seqrank.envs import SimEnv, make_env
 from seqrank.episodes import EpisodeStore
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.session import FeedbackSource, SessionPlan
+from seqrank.feedback.session import FeedbackSource
 from seqrank.feedback.sources import make_source
-from seqrank.reward.learners import make_learner
-from seqrank.reward.model import RewardModel
-from seqrank.reward.rime import RimeSettings
-from seqrank.reward.surf import SurfSettings
 from seqrank.training.agent_factory import make_agent
 from seqrank.training.backbones import BACKBONES, UpdateParts
 from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
@@ -36,12 +32,16 @@ from seqrank.training.evaluator import (
     Evaluations,
     InlineEvaluations,
 )
+from seqrank.training.feedback_parts import (
+    make_reward_learning,
+    make_reward_model,
+    make_sessions,
+)
 from seqrank.training.finetune import refill_for_part, start_from
 from seqrank.training.pretrain import EntropyPretraining
-from seqrank.training.reward_phase import RewardLearning, RewardSettings
+from seqrank.training.reward_phase import RewardLearning
 from seqrank.training.runs import RunDir
 from seqrank.training.runtime import Runtime, resolve_runtime
-from seqrank.training.sessions import FeedbackSessions, Schedule
 from seqrank.training.state import Counters
 
 Progress = Callable[[int, dict[str, Any]], None]
@@ -79,14 +79,7 @@ class Trainer:
         obs_dim, act_dim = self.env.obs_dim, self.env.act_dim
         storage = device if runtime.fast else torch.device("cpu")
         self.agent = make_agent(config, self.env, runtime)
-        self.reward_model = RewardModel(
-            config.reward_ensemble,
-            obs_dim + act_dim,
-            config.reward_hidden,
-            config.reward_layers,
-            config.reward_lr,
-            device,
-        )
+        self.reward_model = make_reward_model(config, obs_dim + act_dim, device)
         train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
         self.replay = ReplayBuffer(kept + config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
@@ -126,20 +119,15 @@ class Trainer:
             self.generator,
             warm_start=self.reward_model if config.warm_start else None,
         )
-        self.sessions = FeedbackSessions(
-            Schedule(
-                config.max_feedback,
-                config.reward_batch,
-                config.feedback_frequency,
-                env.episode_length,
-            ),
-            session_plan(config),
+        self.sessions = make_sessions(
+            config,
             self.source,
             self.episodes,
             self.reward_model,
             self.rng,
-            wait_for_feedback,
             self.labels,
+            env.episode_length,
+            wait_for_feedback,
         )
         study_parts = tuple(p for p in config.parts.split(",") if p)
         if study_parts:  # before each session: episodes of the study part's skill levels
@@ -160,43 +148,14 @@ class Trainer:
         self.evaluations = self._evaluations()
 
     def _reward_learning(self) -> RewardLearning:
-        config, fast = self.config, self.runtime.fast
-        settings = RewardSettings(
-            config.reward_epochs,
-            config.reward_minibatch,
-            config.reward_stop_accuracy,
-            config.heldout_pairs,
-            config.segment_length,
-            sync_every_step=not fast,
-            relabel_chunk=65_536 if fast else 8_192,
-        )
-        learner = make_learner(
-            config.reward_learner,
-            self.generator,
-            SurfSettings(
-                config.surf_threshold,
-                config.surf_unlabelled_ratio,
-                config.surf_unlabelled_batch,
-                config.surf_loss_weight,
-                config.surf_crop,
-            ),
-            RimeSettings(
-                config.rime_alpha,
-                config.rime_beta_max,
-                config.rime_beta_min,
-                config.rime_decay_updates,
-                config.rime_tau_upper,
-                config.rime_min_epochs,
-            ),
-        )
-        return RewardLearning(
+        return make_reward_learning(
+            self.config,
             self.reward_model,
             self.labels,
             self.replay,
             self.episodes,
-            settings,
             self.generator,
-            learner,
+            self.runtime.fast,
         )
 
     def _evaluations(self) -> Evaluations:
@@ -229,7 +188,7 @@ def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
     too): segments fit an episode, the replay buffer (`kept` steps of a fine-tuned run's
     plus the run's) fits memory; returns where and how the run trains."""
     # a fine-tuning run starts with the saved run's episodes: its first session needs none
-    _check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
+    check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
     runtime = resolve_runtime(config.device, config.path, config.precision, env.discrete)
     # the reference path keeps the buffer on the host and copies each batch over
     storage = runtime.device if runtime.fast else torch.device("cpu")
@@ -237,7 +196,7 @@ def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
     return runtime
 
 
-def _check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
+def check_episode_fits(config: TrainConfig, episode_length: int, has_terminals: bool) -> None:
     """Segments are cut from complete episodes, the first ones by the first session (a
     task with terminal states may end episodes sooner: its first session waits for one)."""
     if not config.reward.asks:
@@ -269,15 +228,3 @@ def _check_replay_fits(steps: int, obs_dim: int, act_dim: int, storage: torch.de
             f"{needed / 2**30:,.1f} GiB, more than the {total / 2**30:,.1f} GiB of memory on "
             f"{storage.type}; lower {setting('steps')}"
         )
-
-
-def session_plan(config: TrainConfig) -> SessionPlan:
-    """How the run's sessions are cut, chosen and checked."""
-    return SessionPlan(
-        config.scheme.value,
-        config.selection.value,
-        config.oversample,
-        config.segment_length,
-        recheck=config.recheck,
-        query_episodes=config.query_episodes,
-    )

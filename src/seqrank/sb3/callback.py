@@ -1,0 +1,216 @@
+"""`PreferenceFeedback`: seqrank's feedback sessions for any Stable-Baselines3 agent.
+
+It is an SB3 callback and owns the agent's environment (`feedback.env`). After each step
+the true reward is kept aside; at the end of each rollout (every step for SAC and TD3) a
+session is asked when one is due, by the same code as seqrank's loop
+(`training.feedback_phase`): answered, augmented, stored, the reward refitted, the replay
+buffer relabelled (off-policy agents), and after the first session the critic reset.
+Before the first session an off-policy agent pre-trains on the state-entropy reward.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+import seqrank.sb3.agents as agents
+import seqrank.sb3.saving as saving
+from seqrank.errors import SettingError, setting
+from seqrank.feedback.labels import LabelStore
+from seqrank.feedback.session import FeedbackSource
+from seqrank.sb3.build import describe_task, make_teacher, task_names
+from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, canonical_actions, task_vec_env
+from seqrank.sb3.run import FeedbackRun
+from seqrank.sb3.settings import feedback_config, pebble_default, without_pretraining
+from seqrank.sb3.streams import restore_rng
+from seqrank.sb3.tables import EpisodeTable, ReplayTable
+from seqrank.training.feedback_phase import feedback_step, learn_from_session
+from seqrank.training.runtime import resolve_device
+from seqrank.training.sessions import AnsweredSession
+from seqrank.training.sinks import scalars
+from seqrank.training.trainer import check_episode_fits
+
+
+class PreferenceFeedback(BaseCallback):
+    """Preferences for an SB3 agent: `PreferenceFeedback(env, scheme="root", ...)`, then
+    `SAC("MlpPolicy", feedback.env).learn(steps, callback=feedback)`.
+
+    `env`: a seqrank task name, a gymnasium.Env or an SB3 VecEnv. Keywords: the feedback
+    settings of `seqrank train` (same names and defaults: scheme, teacher, max_feedback,
+    reward_batch, feedback_frequency, segment_length, selection, augment, reward_learner,
+    query_episodes, reward_*, seed_steps, unsup_steps, ...; `teacher` may also be a
+    `FeedbackSource` or a judge function of two `Segment`s); `scale` picks the presets;
+    `pretrain` and `reset_critic` switch PEBBLE's pieces (None: on for SAC and TD3);
+    `n_envs` environments of a task name; with `teacher="human"`, the labelling page
+    serves from `label_dir` with `page` (`labelling.app.ServerOptions`)."""
+
+    def __init__(
+        self,
+        env: Any,
+        *,
+        teacher: str | FeedbackSource | Callable[..., Any] = "oracle",
+        scale: str = "auto",
+        pretrain: bool | None = None,
+        reset_critic: bool | None = None,
+        n_envs: int = 1,
+        wait_for_feedback: bool = True,
+        page: Any = None,
+        label_dir: str | Path | None = None,
+        verbose: int = 0,
+        **settings: Any,
+    ):
+        super().__init__(verbose)
+        name, preset = task_names(env)
+        spec = teacher if isinstance(teacher, str) else "oracle"
+        human = spec == "human"
+        extra: dict[str, Any] = {"record_states": 1} if human else {}
+        if pretrain is False:  # no pre-training phase: the first session after seed_steps
+            extra["unsup_steps"] = 0
+        self.given = feedback_config(name, preset, scale, {"teacher": spec, **settings, **extra})
+        _check_options(n_envs, human, label_dir, env)
+        self.options: dict[str, Any] = {"pretrain": pretrain, "reset_critic": reset_critic}
+        self.options.update(n_envs=n_envs, wait_for_feedback=wait_for_feedback)
+        self.config = config = self.given
+        task = describe_task(env, n_envs, config.seed)
+        if task.episode_length is not None:
+            check_episode_fits(config, task.episode_length, task.has_terminals)
+        self.task = task
+        source = make_teacher(teacher, task.obs_dim)
+        self.page = None
+        if source is None:  # the person at the labelling page
+            from seqrank.sb3.page import open_page
+
+            assert label_dir is not None
+            self.page, source = open_page(Path(label_dir), config, task.obs_dim, task.act_dim, page)
+        device = resolve_device(config.device)
+        self.run = FeedbackRun(
+            config, source, task.obs_dim, task.act_dim, task.episode_length or 1, device,
+            wait_for_feedback,
+        )  # fmt: skip
+        venv = task.venv if task.venv is not None else task_vec_env(task.sims or [], config.seed)
+        self.seeded = [
+            e.env for e in getattr(venv, "envs", []) if isinstance(e.env, SeededEpisodes)
+        ]
+        record = bool(config.record_states)
+        self.env = PreferenceVecEnv(
+            venv, self.run.episodes, self.run.learned_reward, task.sims, record
+        )
+        self.entropy = agents.EntropyBatches(config.knn_k, self.run.entropy_stats)
+        self.table: ReplayTable | EpisodeTable | None = None
+        self.metrics: list[dict[str, Any]] = []
+        self.pending: dict[str, Any] = {}  # what a loaded run restores when it trains again
+        self.pretraining = self.critic_reset = False
+
+    # ---- the contract ---------------------------------------------------------------
+    @property
+    def labels(self) -> LabelStore:
+        """Every labelled pair so far, asked and inferred."""
+        return self.run.labels
+
+    def reward(self, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """The learned reward (ensemble mean) of a batch, as the agent gets it: (N,)."""
+        obs = np.asarray(observations, np.float32).reshape(len(observations), -1)
+        return self.run.learned_reward(obs, canonical_actions(self.env.action_space, actions))
+
+    def save(self, path: str | Path) -> None:
+        """Settings, labels (`labels.jsonl`), reward model, episodes, counters and random
+        streams into the folder `path`; with SB3's `model.save` and `save_replay_buffer`
+        a run continues from there (`PreferenceFeedback.load`)."""
+        saving.save(self, Path(path))
+
+    @classmethod
+    def load(cls, path: str | Path, env: Any = None, **options: Any) -> PreferenceFeedback:
+        """The feedback saved in `path`, for `env` (default: the saved task name); pass
+        `teacher=` again for a source that is not a teacher value."""
+        return saving.load(cls, Path(path), env, options)
+
+    def close(self) -> None:
+        """Stop the labelling page, if any (its answers are saved already)."""
+        if self.page is not None:
+            self.page.close()
+            self.page = None
+
+    # ---- SB3's callback hooks ----------------------------------------------------------
+    def _init_callback(self) -> None:
+        model, kind = self.model, type(self.model).__name__
+        off_policy = agents.is_off_policy(model)
+        self.pretraining = pebble_default(
+            kind, self.options["pretrain"], not off_policy, "pretrain"
+        )
+        reset = self.options["reset_critic"]
+        self.critic_reset = pebble_default(kind, reset, not off_policy, "reset_critic")
+        if not self.pretraining and self.config.unsup_steps:
+            self.config = without_pretraining(self.config)
+        if isinstance(model, OffPolicyAlgorithm):
+            assert model.replay_buffer is not None, "the agent's replay buffer is made with it"
+            true = self.pending.pop("true", None)
+            self.table = ReplayTable(model.replay_buffer, self.run.device, true)
+        else:
+            self.table = EpisodeTable(
+                self.run.episodes, self.run.reward_model.reward, self.run.device
+            )
+        self.run.use_table(self.table)
+
+    def _on_training_start(self) -> None:
+        if "global_rng" in self.pending:
+            restore_rng(self.pending.pop("global_rng"), self.model)
+        if self.pretraining and self.run.counters.sessions == 0:
+            assert isinstance(self.table, ReplayTable)
+            self.entropy.install(self.table)
+
+    def _on_step(self) -> bool:
+        if isinstance(self.table, ReplayTable):
+            infos = self.locals["infos"]
+            self.table.store_true(np.array([info["true_reward"] for info in infos]))
+        return True
+
+    def _on_rollout_end(self) -> None:
+        c = self.run.counters
+        c.step = self.num_timesteps
+        if c.step < self.config.first_session_step:
+            return
+        feedback_step(self.run.sessions, c, self._learn_from)
+        if self.page is not None:
+            self.page.training(c.step)
+
+    def _on_training_end(self) -> None:
+        self.entropy.remove()  # the buffer pickles as SB3 made it
+
+    def _learn_from(self, answered: AnsweredSession | None) -> None:
+        if answered is None:
+            return
+        run = self.run
+        self.entropy.remove()  # pre-training ends with the first session
+        updates = self.config.updates_after_reset
+
+        def reset() -> None:
+            if self.critic_reset:
+                agents.reset_critic(self.model, updates)
+
+        row = learn_from_session(
+            answered, run.labels, run.counters, run.reward, self.config.seed, reset
+        )
+        self.metrics.append(row)
+        for name, value in scalars(row).items():
+            self.logger.record(name, value)
+        self.logger.dump(self.num_timesteps)
+
+
+def _check_options(n_envs: int, human: bool, label_dir: Any, env: Any) -> None:
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+        raise SettingError(f"{setting('n_envs')} must be a whole number from 1, got {n_envs!r}")
+    if n_envs > 1 and not isinstance(env, str):
+        raise SettingError(
+            f"{setting('n_envs')} {n_envs} makes environments of a task name; for your own "
+            "environment pass a VecEnv of as many"
+        )
+    if human and (label_dir is None or not isinstance(env, str)):
+        raise SettingError(
+            f"{setting('teacher')} 'human' answers on the labelling page: give a task name "
+            "(its clips are re-rendered) and label_dir, the folder of the label database"
+        )

@@ -1,0 +1,98 @@
+"""A `PreferenceFeedback`'s settings: the feedback-session options of `seqrank train`,
+resolved and checked by the run config's own code (`config.resolve_config`, `validate`),
+so a bad value is refused with the same one-line `SettingError` before anything is made.
+
+The agent's own settings (network sizes, learning rates, discount, ...) are the SB3
+model's, so they are refused here, naming where they go instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+from typing import Any
+
+from seqrank.config import TrainConfig, resolve_config
+from seqrank.errors import SettingError, setting
+from seqrank.scale import resolve_scale
+
+# TrainConfig fields that configure seqrank's own agent, loop or run directory
+AGENT_SETTINGS = frozenset(
+    {
+        "task",
+        "reward",
+        "backbone",
+        "path",
+        "precision",
+        "hidden",
+        "layers",
+        "batch",
+        "actor_lr",
+        "critic_lr",
+        "alpha_lr",
+        "init_temperature",
+        "discount",
+        "tau",
+        "target_update_every",
+        "hybrid_replay",
+        "hybrid_episodes",
+        "start_from",
+        "parts",
+        "warm_start",
+        "meta_update_frequency",
+        "meta_loss_weight",
+        "eval_every",
+        "eval_episodes",
+        "checkpoint_every",
+    }
+)
+FEEDBACK_SETTINGS = tuple(
+    f.name for f in fields(TrainConfig) if f.name not in AGENT_SETTINGS and f.name != "scale"
+)
+# agents whose update PEBBLE's pieces (entropy pre-training, critic reset) fit by default
+PEBBLE_AGENTS = ("SAC", "TD3")
+
+
+def check_names(settings: dict[str, Any]) -> None:
+    for name in settings:
+        if name in AGENT_SETTINGS:
+            raise SettingError(
+                f"{setting(name)} is a setting of seqrank's own agent and loop; with "
+                "Stable-Baselines3 set the agent's on the SB3 model (e.g. SAC(..., "
+                "learning_rate=..., batch_size=...)), the task as the first argument"
+            )
+        if name not in FEEDBACK_SETTINGS:
+            raise SettingError(
+                f"unknown setting {name!r}; accepted: {', '.join(FEEDBACK_SETTINGS)}, scale, "
+                "pretrain, reset_critic, n_envs, wait_for_feedback, page, label_dir"
+            )
+
+
+def feedback_config(
+    task: str, preset_task: str, scale: str, settings: dict[str, Any]
+) -> TrainConfig:
+    """The run config of the feedback: `preset_task`'s presets (the task itself, or a
+    Gymnasium stand-in for an environment object), `scale` and the user's settings,
+    validated as `seqrank train` validates them; `task` names it in saved settings."""
+    check_names(settings)
+    from seqrank.training.runtime import resolve_device
+
+    device = str(settings.get("device", "auto"))
+    if scale == "auto":
+        scale = resolve_scale(scale, resolve_device(device))
+    config = resolve_config(preset_task, scale, {**settings, "task": preset_task})
+    return replace(config, task=task)
+
+
+def without_pretraining(config: TrainConfig) -> TrainConfig:
+    """No pre-training phase: the first session comes after `seed_steps`."""
+    return replace(config, unsup_steps=0)
+
+
+def pebble_default(agent: str, wanted: bool | None, on_policy: bool, name: str) -> bool:
+    """Whether one of PEBBLE's pieces is on for `agent` (None: on for SAC and TD3)."""
+    if wanted and on_policy:
+        raise SettingError(
+            f"{setting(name)} True: {agent} is on-policy (no replay buffer to pre-train on, no "
+            f"critic to reset); accepted for {agent}: False or None"
+        )
+    return agent in PEBBLE_AGENTS if wanted is None else bool(wanted)

@@ -1,0 +1,50 @@
+"""seqrank's tasks as Gymnasium ids (`seqrank/<task>`), registered by `import seqrank`."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium as gym
+import metaworld
+import numpy as np
+import pytest
+from dm_control import suite
+
+import seqrank
+from seqrank.registration import DMC_TASKS, METAWORLD_TASKS, gymnasium_ids
+
+
+def test_every_installed_dmcontrol_and_metaworld_task_has_an_id():
+    assert set(DMC_TASKS) == {f"{d}_{t}" for d, t in suite.ALL_TASKS}
+    assert set(METAWORLD_TASKS) == set(metaworld.MT1.ENV_NAMES)
+    ids = gymnasium_ids()
+    assert len(ids) == len(DMC_TASKS) + len(METAWORLD_TASKS) + 1
+    assert all(env_id in gym.registry for env_id in ids)
+    assert seqrank.__version__
+
+
+@pytest.mark.parametrize(
+    ("env_id", "obs_dim"),
+    [("seqrank/walker_walk-v0", 24), ("seqrank/block-place-v0", 5), ("seqrank/reach-v3", 39)],
+)
+def test_an_id_makes_the_task_with_rgb_frames(env_id, obs_dim):
+    env = gym.make(env_id, render_mode="rgb_array", width=64, height=48)
+    obs, _ = env.reset(seed=3)
+    again, _ = env.reset(seed=3)
+    np.testing.assert_array_equal(obs, again)  # an episode is a function of its seed
+    assert obs.shape == (obs_dim,) and obs.dtype == np.float32
+    _, reward, terminated, _, info = env.step(env.action_space.sample())
+    assert isinstance(reward, float) and not terminated and "success" in info
+    frame = env.render()
+    assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
+    env.close()
+    with pytest.raises(ValueError, match="render_mode 'human'; accepted: rgb_array"):
+        gym.make(env_id, render_mode="human")
+
+
+def test_gymnasium_alone_finds_the_ids_by_module_prefix():
+    make = "gymnasium.make('seqrank:seqrank/cartpole_swingup-v0')"
+    code = f"import gymnasium; print({make}.reset(seed=0)[0].shape)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.stdout.strip() == "(5,)", done.stderr

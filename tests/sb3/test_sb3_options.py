@@ -1,0 +1,63 @@
+"""Bad options are refused with the run config's own one-line error naming the option,
+before anything is made (no folder, no page, no environment)."""
+
+from __future__ import annotations
+
+import pytest
+from stable_baselines3 import PPO
+
+from seqrank.config import resolve_config
+from seqrank.errors import SettingError
+from seqrank.sb3 import PreferenceFeedback
+from support.sb3_runs import LINE, TINY, feedback
+
+BAD = [
+    ({"scheme": "best"}, "unknown scheme 'best'"),
+    ({"teacher": "oracle,eps_mistake=2"}, "eps_mistake"),
+    ({"max_feedback": 0}, "max_feedback must be a whole number from 1"),
+    ({"segment_length": 10, "surf_crop": 10}, "surf_crop 10 must be smaller than segment_length"),
+    ({"reward_learner": "magic"}, "reward_learner"),
+    ({"query_episodes": 500}, "query_episodes 500 exceeds episodes_kept"),
+    ({"reward_batch": 50}, "reward_batch 50 exceeds max_feedback 40"),
+    ({"feedback_frequency": 5000}, "impossible budget"),
+]
+
+
+@pytest.mark.parametrize(("settings", "named"), BAD)
+def test_a_bad_setting_gets_the_same_error_as_seqrank_train(settings, named, tmp_path):
+    with pytest.raises(ValueError) as refused:
+        feedback(**settings, label_dir=tmp_path / "labels")
+    assert named in str(refused.value) and "\n" not in str(refused.value)
+    with pytest.raises(ValueError) as cli:  # what `seqrank train` resolves and validates
+        resolve_config(LINE, "small", {**TINY, **settings})
+    assert str(refused.value) == str(cli.value)
+    assert not (tmp_path / "labels").exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [
+        ({"hidden": 64}, "hidden is a setting of seqrank's own agent"),
+        ({"bogus": 1}, "unknown setting 'bogus'; accepted: scheme, teacher"),
+        ({"n_envs": 0}, "n_envs must be a whole number from 1"),
+        ({"teacher": 3}, "teacher 3; accepted"),
+        ({"teacher": "human"}, "teacher 'human' answers on the labelling page"),
+    ],
+)
+def test_options_of_the_sb3_layer_are_refused_by_name(options, named, tmp_path):
+    with pytest.raises(SettingError, match=named):
+        feedback(**options)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_bad_task_or_environment_is_refused_by_name():
+    with pytest.raises(SettingError, match="unknown task 'walker_jog'"):
+        PreferenceFeedback("walker_jog")
+    with pytest.raises(SettingError, match="env 42; accepted: a seqrank task name"):
+        PreferenceFeedback(42)
+
+
+def test_pebbles_pieces_are_refused_for_an_on_policy_agent():
+    fb = feedback(pretrain=True)
+    with pytest.raises(SettingError, match="pretrain True: PPO is on-policy"):
+        PPO("MlpPolicy", fb.env, n_steps=64, batch_size=32).learn(64, callback=fb)

@@ -1,0 +1,26 @@
+"""Tiny SB3 runs from preferences on the line task (`support.sb3_envs`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from seqrank.sb3 import PreferenceFeedback
+
+LINE = "support.sb3_envs:make_line"
+TINY = dict(
+    max_feedback=40,
+    reward_batch=10,
+    feedback_frequency=400,
+    seed_steps=100,
+    unsup_steps=400,
+    segment_length=10,
+    steps=3000,
+    reward_epochs=5,
+    heldout_pairs=50,
+    device="cpu",
+)
+SMALL_SAC = dict(policy_kwargs=dict(net_arch=[32, 32]), batch_size=64, learning_starts=100)
+
+
+def feedback(task: str = LINE, **settings: Any) -> PreferenceFeedback:
+    return PreferenceFeedback(task, **{**TINY, **settings})
