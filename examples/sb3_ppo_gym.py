@@ -42,7 +42,9 @@ def main() -> None:
     n_steps = 200 if args.tiny else 2048
     model = PPO("MlpPolicy", feedback.env, n_steps=n_steps, batch_size=50, seed=0)
     model.learn(args.steps, callback=feedback)
-    true_return, _ = evaluate_policy(model, gym.make("Pendulum-v1"), n_eval_episodes=3)
+    # the agent acts in feedback.env's space: a gymnasium.Env's actions rescaled to [-1, 1]
+    evaluation = gym.wrappers.RescaleAction(gym.make("Pendulum-v1"), -1.0, 1.0)
+    true_return, _ = evaluate_policy(model, evaluation, n_eval_episodes=3)
     c = feedback.run.counters
     print(f"asked {c.asked}, inferred {c.inferred}; true return {true_return:.1f}")
 

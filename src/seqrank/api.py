@@ -112,7 +112,13 @@ class JudgeSource:
         def ask(first: int, second: int) -> Answer:
             one = Segment(segments.features[first], segments.rewards[first], self.obs_dim)
             two = Segment(segments.features[second], segments.rewards[second], self.obs_dim)
-            return self.judge(one, two)
+            verdict = self.judge(one, two)
+            if not isinstance(verdict, Answer):
+                raise TypeError(
+                    f"the judge returned {verdict!r}; accepted: a seqrank.Answer (FIRST, "
+                    "SECOND, EQUAL or SKIP)"
+                )
+            return verdict
 
         return segments, request.run_scheme(ask)
 

@@ -3,6 +3,7 @@ before anything is made (no folder, no page, no environment)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from stable_baselines3 import PPO
 
@@ -37,7 +38,8 @@ def test_a_bad_setting_gets_the_same_error_as_seqrank_train(settings, named, tmp
 @pytest.mark.parametrize(
     ("options", "named"),
     [
-        ({"hidden": 64}, "hidden is a setting of seqrank's own agent"),
+        ({"hidden": 64}, r"hidden is a setting of seqrank's own agent.*net_arch"),
+        ({"learning_rate": 3e-4}, "'learning_rate' is a keyword of the SB3 model"),
         ({"bogus": 1}, "unknown setting 'bogus'; accepted: scheme, teacher"),
         ({"n_envs": 0}, "n_envs must be a whole number from 1"),
         ({"teacher": 3}, "teacher 3; accepted"),
@@ -61,3 +63,43 @@ def test_pebbles_pieces_are_refused_for_an_on_policy_agent():
     fb = feedback(pretrain=True)
     with pytest.raises(SettingError, match="pretrain True: PPO is on-policy"):
         PPO("MlpPolicy", fb.env, n_steps=64, batch_size=32).learn(64, callback=fb)
+
+
+def test_a_budget_that_only_pre_training_makes_impossible_says_how_to_drop_it():
+    """PPO does not pre-train, but the budget is checked before the agent is known: with
+    the preset's pre-training the hint names pretrain=False."""
+    settings = {k: v for k, v in TINY.items() if k != "unsup_steps"}
+    with pytest.raises(SettingError, match=r"impossible budget.*pass pretrain=False"):
+        PreferenceFeedback(LINE, **{**settings, "steps": 1500})
+    PreferenceFeedback(LINE, **{**settings, "steps": 1500}, pretrain=False)  # fits without
+
+
+def test_seqranks_own_gymnasium_environment_is_taken_as_it_is():
+    import gymnasium
+
+    import seqrank  # noqa: F401  (registers seqrank/...)
+
+    taught = PreferenceFeedback(gymnasium.make("seqrank/cartpole_swingup-v0"), **TINY)
+    assert taught.task.episode_length == 1000  # it ends its episodes itself
+
+
+def test_a_judge_that_does_not_answer_with_an_answer_is_named():
+    taught = feedback(teacher=lambda first, second: 1)
+    model = PPO("MlpPolicy", taught.env, n_steps=100, batch_size=50, seed=0)
+    with pytest.raises(TypeError, match=r"the judge returned 1; accepted: a seqrank.Answer"):
+        model.learn(600, callback=taught)
+
+
+def test_reward_takes_a_batch_and_says_so():
+    taught = feedback()
+    with pytest.raises(ValueError, match=r"reward\(\) takes a batch: observations \(N, 2\)"):
+        taught.reward(np.zeros(2), np.zeros(1))
+
+
+def test_feedback_saved_for_your_own_environment_is_loaded_only_with_it(tmp_path):
+    from support.sb3_envs import make_line
+
+    PreferenceFeedback(make_line(), **TINY).save(tmp_path / "saved")
+    with pytest.raises(ValueError, match=r"made for your own environment .*pass it again"):
+        PreferenceFeedback.load(tmp_path / "saved")
+    assert PreferenceFeedback.load(tmp_path / "saved", make_line()).task.obs_dim == 2

@@ -164,6 +164,8 @@ def _time_limit(env: gym.Env[Any, Any], name: str) -> int:
     limit = env.spec.max_episode_steps if env.spec is not None else None
     if limit is None:
         limit = getattr(env, "max_episode_steps", None) or getattr(env, "_max_episode_steps", None)
+    if limit is None:  # an environment that ends its episodes itself (seqrank's own tasks)
+        limit = getattr(env.unwrapped, "max_episode_steps", None)
     if not limit:
         raise SettingError(
             f"{setting('task')} {name!r} has no time limit; wrap it in "

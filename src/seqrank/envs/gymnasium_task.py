@@ -31,6 +31,8 @@ class TaskEnv(gym.Env[np.ndarray, np.ndarray]):
         self.render_mode, self.width, self.height = render_mode, width, height
         self.observation_space = self.task.observation_space
         self.action_space = self.task.action_space
+        # the task ends its episodes itself (truncated at this step): what a TimeLimit says
+        self.max_episode_steps = self.task.episode_length
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

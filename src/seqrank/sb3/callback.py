@@ -71,7 +71,19 @@ class PreferenceFeedback(BaseCallback):
         extra: dict[str, Any] = {"record_states": 1} if human else {}
         if pretrain is False:  # no pre-training phase: the first session after seed_steps
             extra["unsup_steps"] = 0
-        self.given = feedback_config(name, preset, scale, {"teacher": spec, **settings, **extra})
+        try:
+            self.given = feedback_config(
+                name, preset, scale, {"teacher": spec, **settings, **extra}
+            )
+        except SettingError as problem:
+            pretraining_by_default = pretrain is None and "unsup_steps" not in settings
+            if pretraining_by_default and "impossible budget" in str(problem):
+                raise SettingError(
+                    f"{problem} (the steps count the pre-training SAC and TD3 do by default; "
+                    "for an on-policy agent, PPO or A2C, pass pretrain=False)"
+                ) from None
+            raise
+        self.from_task_name = isinstance(env, str)
         _check_options(n_envs, human, label_dir, env)
         self.options: dict[str, Any] = {"pretrain": pretrain, "reset_critic": reset_critic}
         self.options.update(n_envs=n_envs, wait_for_feedback=wait_for_feedback)
@@ -113,8 +125,19 @@ class PreferenceFeedback(BaseCallback):
         return self.run.labels
 
     def reward(self, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """The learned reward (ensemble mean) of a batch, as the agent gets it: (N,)."""
-        obs = np.asarray(observations, np.float32).reshape(len(observations), -1)
+        """The learned reward (ensemble mean) of a batch, as the agent gets it: (N,).
+
+        `observations` (N, obs_dim) and `actions` (N, act_dim), or (N,) action indices of a
+        discrete space, as `feedback.env` takes them: in its action space, which for a
+        task name or a gymnasium.Env is [-1, 1] already. SB3's replay buffer keeps a Box
+        action scaled to [-1, 1]: for a VecEnv of another range, pass
+        `model.policy.unscale_action(actions)`."""
+        obs = np.asarray(observations, np.float32)
+        if obs.ndim != 2 or len(obs) != len(actions):
+            raise ValueError(
+                f"reward() takes a batch: observations (N, {self.run.obs_dim}) and N actions; "
+                f"got observations of shape {obs.shape} and {len(actions)} actions"
+            )
         return self.run.learned_reward(obs, canonical_actions(self.env.action_space, actions))
 
     def save(self, path: str | Path) -> None:

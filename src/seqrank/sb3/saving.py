@@ -31,6 +31,7 @@ def save(feedback: PreferenceFeedback, folder: Path) -> None:
     run, model = feedback.run, getattr(feedback, "model", None)
     settings = {"config": feedback.given.as_dict(), **feedback.options}
     settings["teacher_is_value"] = not _custom_teacher(feedback)
+    settings["from_task_name"] = feedback.from_task_name
     (folder / SETTINGS).write_text(json.dumps(settings, indent=2, default=str) + "\n")
     state = run.state_dict()
     # the episode in progress starts again from its seed when the run continues
@@ -58,6 +59,11 @@ def load(
         raise ValueError(
             f"{folder} was answered by your own source: pass it again, "
             "PreferenceFeedback.load(folder, env, teacher=...)"
+        )
+    if env is None and not saved.get("from_task_name", True):
+        raise ValueError(
+            f"{folder} was made for your own environment ({config['task']}): pass it again, "
+            "PreferenceFeedback.load(folder, env)"
         )
     kinds = {f.name: f.type for f in fields(TrainConfig)}
     settings = {name: config[name] for name in FEEDBACK_SETTINGS if name in config}

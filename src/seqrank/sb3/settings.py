@@ -52,13 +52,45 @@ FEEDBACK_SETTINGS = tuple(
 PEBBLE_AGENTS = ("SAC", "TD3")
 
 
+# where each of seqrank's own agent settings lives with Stable-Baselines3
+AGENT_HINTS = {
+    "hidden": "the network: SAC('MlpPolicy', env, policy_kwargs=dict(net_arch=[256, 256]))",
+    "layers": "the network: SAC('MlpPolicy', env, policy_kwargs=dict(net_arch=[256, 256]))",
+    "task": "the environment: the first argument, PreferenceFeedback('walker_walk', ...)",
+    "reward": "a baseline that asks nothing: train the SB3 model on the environment itself",
+}
+# keywords of SB3's models that users pass here by mistake
+SB3_MODEL_KEYWORDS = frozenset(
+    {
+        "learning_rate",
+        "batch_size",
+        "buffer_size",
+        "learning_starts",
+        "gamma",
+        "train_freq",
+        "gradient_steps",
+        "ent_coef",
+        "policy_kwargs",
+        "n_steps",
+        "n_epochs",
+    }
+)
+
+
 def check_names(settings: dict[str, Any]) -> None:
     for name in settings:
         if name in AGENT_SETTINGS:
+            where = AGENT_HINTS.get(
+                name, "the SB3 model's own, e.g. SAC(..., learning_rate=..., batch_size=...)"
+            )
             raise SettingError(
                 f"{setting(name)} is a setting of seqrank's own agent and loop; with "
-                "Stable-Baselines3 set the agent's on the SB3 model (e.g. SAC(..., "
-                "learning_rate=..., batch_size=...)), the task as the first argument"
+                f"Stable-Baselines3 it is {where}"
+            )
+        if name in SB3_MODEL_KEYWORDS:
+            raise SettingError(
+                f"{name!r} is a keyword of the SB3 model, not of the feedback: "
+                f"SAC('MlpPolicy', feedback.env, {name}=...)"
             )
         if name not in FEEDBACK_SETTINGS:
             raise SettingError(
