@@ -385,7 +385,7 @@ def test_pages_from_another_origin_can_neither_read_nor_write(tmp_path, caplog):
             assert outcome["state"] in ("blocked", "opaque") or "not an address" in outcome["state"]
         assert "not an address this server serves" in rebinding["state"]  # refused by Host
         refused = [r.getMessage() for r in caplog.records if r.name.endswith("access")]
-        assert any("POST /api/answer: requests from" in m for m in refused), refused
+        assert any("POST /api/answer (403): requests from" in m for m in refused), refused
         assert hub.db.answered_questions() == []
     finally:
         stop(hub, server)
