@@ -15,9 +15,9 @@ from seqrank.cli import main
 RETURNS = (0.0, 30.0, 90.0, 270.0, 810.0, 990.0)
 
 
-def finished_run(directory, seed: int, final_return: float) -> None:
+def finished_run(directory, seed: int, final_return: float, scheme: str = "root") -> None:
     directory.mkdir(parents=True)
-    config = {"task": "walker_walk", "scheme": "root", "backbone": "pebble", "teacher": "oracle"}
+    config = {"task": "walker_walk", "scheme": scheme, "backbone": "pebble", "teacher": "oracle"}
     config.update(reward="learned", seed=seed, steps=1000, scale="small")
     (directory / "config.json").write_text(json.dumps(config))
     rows = [
@@ -48,3 +48,20 @@ def test_the_task_tables_interval_is_the_95_percent_one(tmp_path):
     assert exact_bootstrap_quantiles(RETURNS, [0.95])[0] < high_band[0]
     assert low_band[0] <= cell["iqm_low"] <= low_band[1]
     assert high_band[0] <= cell["iqm_high"] <= high_band[1]
+
+
+def test_a_method_with_one_run_gets_no_interval_rather_than_a_zero_wide_one(tmp_path):
+    finished_run(tmp_path / "runs" / "root_0", 0, 300.0)
+    for seed, value in enumerate((100.0, 200.0, 400.0)):
+        finished_run(tmp_path / "runs" / f"pairwise_{seed}", seed, value, "pairwise")
+    out = tmp_path / "report"
+    assert main(["report", str(tmp_path / "runs"), "--bootstrap", "200", "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    cells = {c["method"]: c for c in report["table"]}
+    assert cells["root"]["iqm_low"] is None and cells["root"]["iqm_high"] is None
+    low, high = cells["pairwise"]["iqm_low"], cells["pairwise"]["iqm_high"]
+    assert 100.0 <= low < high <= 400.0
+    aggregate = {a["method"]: a for a in report["aggregate_iqm"]}
+    assert aggregate["root"]["low"] is None and aggregate["pairwise"]["low"] is not None
+    assert all(p["low"] is None for p in report["probability_of_improvement"])  # root in each
+    assert "| walker_walk | root | 300.0 | none (one run) |" in (out / "report.md").read_text()

@@ -84,6 +84,13 @@ def _method(c: dict[str, Any]) -> str:
     return f"{c['method']} ({c['partial']} unfinished)" if c["partial"] else c["method"]
 
 
+def _ci(low: float | None, high: float | None, digits: int) -> str:
+    """An interval, or why there is none (a method with a single run on a task)."""
+    if low is None or high is None:
+        return "none (one run)"
+    return f"[{low:.{digits}f}, {high:.{digits}f}]"
+
+
 def _section(intro: str, columns: list[str], rows: list[list[str]]) -> list[str]:
     """A titled markdown table."""
     head = ["", intro, "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
@@ -92,7 +99,7 @@ def _section(intro: str, columns: list[str], rows: list[list[str]]) -> list[str]
 
 def _iqm_lines(report: dict[str, Any]) -> list[str]:
     rows = [
-        [c["task"], _method(c), f"{c['iqm']:.1f}", f"[{c['iqm_low']:.1f}, {c['iqm_high']:.1f}]"]
+        [c["task"], _method(c), f"{c['iqm']:.1f}", _ci(c["iqm_low"], c["iqm_high"], 1)]
         for c in report["table"]
     ]
     intro = "IQM per task with 95% bootstrap CI (runs resampled):"
@@ -109,7 +116,7 @@ def _relative_lines(report: dict[str, Any]) -> list[str]:
             c["task"],
             _method(c),
             f"{c['relative']:.2f}",
-            f"[{c['relative_low']:.2f}, {c['relative_high']:.2f}]",
+            _ci(c["relative_low"], c["relative_high"], 2),
         ]
         for c in cells
     ]
@@ -130,7 +137,7 @@ def _aggregate_lines(report: dict[str, Any]) -> list[str]:
         f"the tasks{without}, 95% stratified bootstrap CI:"
     )
     rows = [
-        [a["method"], f"{a['iqm']:.3f}", f"[{a['low']:.3f}, {a['high']:.3f}]"]
+        [a["method"], f"{a['iqm']:.3f}", _ci(a["low"], a["high"], 3)]
         for a in report["aggregate_iqm"]
     ]
     return _section(intro, ["method", "IQM", "95% CI"], rows)
@@ -138,7 +145,7 @@ def _aggregate_lines(report: dict[str, Any]) -> list[str]:
 
 def _improvement_lines(report: dict[str, Any]) -> list[str]:
     rows = [
-        [p["x"], p["y"], f"{p['p']:.2f}", f"[{p['low']:.2f}, {p['high']:.2f}]"]
+        [p["x"], p["y"], f"{p['p']:.2f}", _ci(p["low"], p["high"], 2)]
         for p in report["probability_of_improvement"]
     ]
     intro = "Probability of improvement P(X > Y), averaged over tasks, 95% stratified bootstrap CI:"

@@ -192,7 +192,7 @@ def _task_table(
             if not members:
                 continue
             scores = np.array([r.score for r in members], np.float64)
-            low, high = stratified_bootstrap_ci(iqm_of, ({task: scores},), repetitions, rng)
+            low, high = _interval(iqm_of, ({task: scores},), repetitions, rng)
             table.append(
                 {
                     "task": task,
@@ -229,8 +229,22 @@ def _add_relative(
         y = {row["task"]: np.array([r.score for r in base], np.float64)}
         if min(y[row["task"]]) <= 0:
             continue  # a ratio to a score at or below zero means nothing
-        low, high = stratified_bootstrap_ci(iqm_ratio, (x, y), repetitions, rng)
+        low, high = _interval(iqm_ratio, (x, y), repetitions, rng)
         row.update(relative=iqm_ratio(x, y), relative_low=low, relative_high=high)
+
+
+def _interval(
+    statistic: Callable[..., float],
+    groups: tuple[Scores, ...],
+    repetitions: int,
+    rng: np.random.Generator,
+) -> tuple[float | None, float | None]:
+    """The stratified bootstrap CI, or none where a method has a single run on a task:
+    resampling one run cannot show its spread, so the interval would be zero-wide there
+    (or reflect the other method's runs only)."""
+    if any(len(v) < 2 for group in groups for v in group.values()):
+        return None, None
+    return stratified_bootstrap_ci(statistic, groups, repetitions, rng)
 
 
 def iqm_ratio(x: Scores, y: Scores) -> float:
@@ -245,7 +259,7 @@ def _aggregate(
     for method in methods:
         if not normalized[method]:
             continue
-        low, high = stratified_bootstrap_ci(pooled_iqm, (normalized[method],), repetitions, rng)
+        low, high = _interval(pooled_iqm, (normalized[method],), repetitions, rng)
         aggregate.append(
             {"method": method, "iqm": pooled_iqm(normalized[method]), "low": low, "high": high}
         )
@@ -262,7 +276,7 @@ def _improvement(
         x, y = scores[a], scores[b]
         if not any(t in y for t in x):
             continue
-        low, high = stratified_bootstrap_ci(probability_of_improvement, (x, y), repetitions, rng)
+        low, high = _interval(probability_of_improvement, (x, y), repetitions, rng)
         improvement.append(
             {"x": a, "y": b, "p": probability_of_improvement(x, y), "low": low, "high": high}
         )
