@@ -20,6 +20,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 import seqrank.sb3.agents as agents
 import seqrank.sb3.saving as saving
+from seqrank.config import TrainConfig
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
@@ -71,18 +72,7 @@ class PreferenceFeedback(BaseCallback):
         extra: dict[str, Any] = {"record_states": 1} if human else {}
         if pretrain is False:  # no pre-training phase: the first session after seed_steps
             extra["unsup_steps"] = 0
-        try:
-            self.given = feedback_config(
-                name, preset, scale, {"teacher": spec, **settings, **extra}
-            )
-        except SettingError as problem:
-            pretraining_by_default = pretrain is None and "unsup_steps" not in settings
-            if pretraining_by_default and "impossible budget" in str(problem):
-                raise SettingError(
-                    f"{problem} (the steps count the pre-training SAC and TD3 do by default; "
-                    "for an on-policy agent, PPO or A2C, pass pretrain=False)"
-                ) from None
-            raise
+        self.given = _resolve(name, preset, scale, {"teacher": spec, **settings, **extra}, pretrain)
         self.from_task_name = isinstance(env, str)
         _check_options(n_envs, human, label_dir, env)
         self.options: dict[str, Any] = {"pretrain": pretrain, "reset_critic": reset_critic}
@@ -222,6 +212,23 @@ class PreferenceFeedback(BaseCallback):
         for name, value in scalars(row).items():
             self.logger.record(name, value)
         self.logger.dump(self.num_timesteps)
+
+
+def _resolve(
+    name: str, preset: str, scale: str, settings: dict[str, Any], pretrain: bool | None
+) -> TrainConfig:
+    """The feedback's run config; a budget that only the default pre-training makes
+    impossible says how to drop it (the agent, on-policy or not, is not known yet)."""
+    try:
+        return feedback_config(name, preset, scale, settings)
+    except SettingError as problem:
+        pretraining_by_default = pretrain is None and "unsup_steps" not in settings
+        if pretraining_by_default and "impossible budget" in str(problem):
+            raise SettingError(
+                f"{problem} (the steps count the pre-training SAC and TD3 do by default; "
+                "for an on-policy agent, PPO or A2C, pass pretrain=False)"
+            ) from None
+        raise
 
 
 def _check_options(n_envs: int, human: bool, label_dir: Any, env: Any) -> None:
