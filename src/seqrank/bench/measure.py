@@ -22,8 +22,8 @@ from seqrank.agents.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
 from seqrank.choices import Device, Precision, TrainingPath
 from seqrank.config import TrainConfig
-from seqrank.reward.model import RewardModel
 from seqrank.training.agent_factory import make_sac
+from seqrank.training.feedback_parts import make_reward_model
 from seqrank.training.runs import RunDir
 from seqrank.training.runtime import Runtime
 from seqrank.training.trainer import Trainer
@@ -96,14 +96,7 @@ def reward_epoch_microseconds(
     dims = _Dims(config.task)
     torch.manual_seed(0)
     features = dims.obs_dim + dims.act_dim
-    model = RewardModel(
-        config.reward_ensemble,
-        features,
-        config.reward_hidden,
-        config.reward_layers,
-        config.reward_lr,
-        device,
-    )
+    model = make_reward_model(config, features, device)
     generator = torch.Generator().manual_seed(0)
     segments = torch.randn((REWARD_PAIRS, config.segment_length, features), generator=generator)
     first = torch.randint(0, REWARD_PAIRS, (REWARD_PAIRS,), generator=generator)
