@@ -4,8 +4,8 @@ preferences, or on the true reward, for one (method, seed), into a run folder th
 
     python scripts/sb3_evidence.py --out results/sb3 --method sequential --seed 0
     python scripts/sb3_evidence.py --out results/sb3 --method true-reward --seed 0
-    python scripts/sb3_evidence.py --out results/sb3 --agent ppo --task gym:Hopper-v5 \\
-        --method sequential --seed 0 --steps 300000
+    python scripts/sb3_evidence.py --out results/sb3 --agent ppo --task gym:Pendulum-v1 \\
+        --method sequential --seed 0 --steps 100000
 
 A run trains in chunks of `--chunk` steps (an evaluation after each, then agent, replay
 buffer and feedback saved): rerun the same command after a stop to continue it; a finished
@@ -55,6 +55,8 @@ def settings_of(args: argparse.Namespace) -> dict[str, Any]:
     if args.tiny:
         values.update(seed_steps=100, unsup_steps=200, reward_batch=10, feedback_frequency=200)
         values.update(segment_length=10, reward_epochs=5, heldout_pairs=50, eval_episodes=1)
+    if args.agent == "ppo":  # PEBBLE's entropy pre-training is for off-policy agents
+        values["unsup_steps"] = 0
     return values
 
 
@@ -72,8 +74,20 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def agent_options(args: argparse.Namespace, config: dict[str, Any]) -> dict[str, Any]:
-    if args.agent == "ppo":
-        return {"n_steps": 256 if args.tiny else 2048}
+    if args.agent == "ppo":  # rl-baselines3-zoo's tuned values for Pendulum-v1, one env
+        if args.tiny:
+            return {"n_steps": 256}
+        return {
+            "n_steps": 1024,
+            "gae_lambda": 0.95,
+            "gamma": 0.9,
+            "n_epochs": 10,
+            "ent_coef": 0.0,
+            "learning_rate": 1e-3,
+            "clip_range": 0.2,
+            "use_sde": True,
+            "sde_sample_freq": 4,
+        }
     width = 32 if args.tiny else config["hidden"]
     return {
         "policy_kwargs": {"net_arch": [width] * config["layers"]},
@@ -134,8 +148,9 @@ class Job:
             else:
                 settings = settings_of(args)
                 settings.pop("eval_episodes", None)
+                pretrain = False if args.agent == "ppo" else None
                 feedback = PreferenceFeedback(
-                    args.task, scheme=args.method, scale="small", **settings
+                    args.task, scheme=args.method, scale="small", pretrain=pretrain, **settings
                 )
             env = feedback.env
         else:
