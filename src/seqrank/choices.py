@@ -41,6 +41,13 @@ class Precision(StrEnum):
     BF16 = "bf16"
 
 
+class CrowdWeighting(StrEnum):
+    """How a crowd's labels count in reward training (`seqrank.feedback.reliability`)."""
+
+    RELIABILITY = "reliability"  # each label the probability that its annotator is right
+    NONE = "none"  # every answer as given
+
+
 class RewardSignal(StrEnum):
     """What the agent learns from."""
 

@@ -15,6 +15,7 @@ from seqrank import config_rules as rules
 from seqrank.choices import (
     Augment,
     Backbone,
+    CrowdWeighting,
     Device,
     Precision,
     RewardLearner,
@@ -52,6 +53,7 @@ CHOICES: dict[str, type[Any]] = {
     "reward": RewardSignal,
     "augment": Augment,
     "reward_learner": RewardLearner,
+    "crowd_weighting": CrowdWeighting,
 }
 
 
@@ -108,6 +110,10 @@ class TrainConfig:
     query_episodes: int = 0  # 0: segments from every kept episode; N: from the last N only
     hybrid_replay: float = 0.0  # share of each agent batch from recent transitions; 0: off
     hybrid_episodes: int = 10  # hybrid replay's recent window, in episodes of the task
+    # a crowd of annotators (`--teacher crowd:...`; `seqrank.feedback.crowd`): the share of
+    # answers also asked of a second person, and how the labels count in reward training
+    overlap: float = 0.1
+    crowd_weighting: CrowdWeighting = CrowdWeighting.RELIABILITY
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
     # buffer and episodes to start from, and what the sessions' clips show
@@ -194,6 +200,8 @@ ASKING_ONLY = frozenset(
         "query_episodes",
         "hybrid_replay",
         "hybrid_episodes",
+        "overlap",
+        "crowd_weighting",
         "meta_update_frequency",
         "meta_loss_weight",
         "augment",
@@ -285,8 +293,10 @@ FROM_ZERO = (
     "hybrid_replay",
     "surf_crop",
     "warm_start",
+    "overlap",
 )
 AT_MOST_ONE = (
+    "overlap",
     "discount",
     "tau",
     "reward_stop_accuracy",
@@ -371,3 +381,4 @@ def validate(config: TrainConfig) -> None:
     rules.check_learner(config)
     rules.check_fine_tuning(config)
     rules.check_qpa(config)
+    rules.check_crowd(config)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Collection
+from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -45,6 +46,20 @@ def check_qpa(config: TrainConfig) -> None:
             f"{setting('parts')} {config.parts!r} replaces a session's episodes with fresh "
             "ones of the current policy (aligned already, one per skill level); "
             f"{setting('query_episodes')} would drop some: leave it out"
+        )
+
+
+def check_crowd(config: TrainConfig) -> None:
+    """The crowd's settings act on a crowd's answers only."""
+    if config.teacher_spec.kind == "crowd":
+        return
+    crowd_only = [f for f in fields(config) if f.name in ("overlap", "crowd_weighting")]
+    given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
+    if given:
+        names = " and ".join(setting(name) for name in given)
+        raise SettingError(
+            f"{names} act on a crowd's answers; {setting('teacher')} '{config.teacher}' is "
+            "one teacher: leave them out, or use a crowd (crowd:oracle+mistake+noisy)"
         )
 
 

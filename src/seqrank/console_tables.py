@@ -188,6 +188,30 @@ def print_simulation(out: Console, results: Sequence[CellResult]) -> None:
             _num(r.cyclic_components_per_session, 2),
         )
     out.print(table)
+    print_crowd_members(out, results)
+
+
+def print_crowd_members(out: Console, results: Sequence[CellResult]) -> None:
+    """Each crowd member's estimated reliability beside their true error rate."""
+    crowds = [r for r in results if r.members]
+    if not crowds:
+        return
+    table = Table(title="Crowd members: estimated reliability (95% interval) against truth")
+    for header in ("scheme", "teacher", "augment", "member", "reliability", "interval",
+                   "answers", "agreement", "true error", "flagged"):  # fmt: skip
+        table.add_column(header, justify="left" if header in ("scheme", "member") else "right")
+    for r in crowds:
+        for m in r.members:
+            table.add_row(
+                r.scheme, r.teacher, r.augment, str(m["name"]),
+                _num(m.get("estimate"), 3),  # type: ignore[arg-type]
+                f"[{_num(m.get('low'), 3)}, {_num(m.get('high'), 3)}]",  # type: ignore[arg-type]
+                str(m.get("answers", 0)),
+                _percent(m.get("agreement")),  # type: ignore[arg-type]
+                _percent(m.get("true_error_rate")),  # type: ignore[arg-type]
+                "yes" if m.get("flagged") else "",
+            )  # fmt: skip
+    out.print(table)
 
 
 def _percent(value: float | None) -> str:

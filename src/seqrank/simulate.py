@@ -22,10 +22,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
-from seqrank.feedback.schemes import get_scheme, uniform_choice
-from seqrank.feedback.teachers import ScriptedTeacher, scripted_config
+from seqrank.feedback.crowd import CrowdSource
+from seqrank.feedback.reliability import estimate_reliability, evidence_rows
+from seqrank.feedback.schemes import SessionRecord, get_scheme, uniform_choice
+from seqrank.feedback.session import SessionRequest
+from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher, scripted_config
 from seqrank.types import Answer, AnsweredQuestion
 
 SEGMENT_LENGTH = 50
@@ -62,6 +66,9 @@ class CellResult:
     skipped_per_session: float
     equal_per_session: float
     cyclic_components_per_session: float
+    # a crowd's members: name, reliability estimate with its 95% interval, the answers it
+    # rests on, agreement on overlaps, and the true error rate of their strict answers
+    members: tuple[dict[str, object], ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -116,6 +123,69 @@ def _session(
     return augment(record.answers, returns.tolist(), path_unchecked).stats, record.answers
 
 
+def run_crowd_sessions(
+    scheme: str,
+    crowd: CrowdSource,
+    questions: int,
+    sessions: int,
+    rng: np.random.Generator,
+    recheck: Recheck | None,
+) -> tuple[list[AugmentationStats], tuple[dict[str, object], ...]]:
+    """A crowd's sessions, and each member's estimated reliability (from overlaps and
+    contradictions: no reward model here) beside their true error rate."""
+    stats, evidence, truth = [], [], []
+    for session in range(sessions):
+        rewards = synthetic_segments(2 * questions, SEGMENT_LENGTH, rng)
+        returns = rewards.sum(axis=1)
+        pool = Segments(rewards[:, :, None], rewards, [None] * len(rewards), [None] * len(rewards))
+        request = SessionRequest(
+            scheme, questions, session, pool, uniform_choice, rng, float(returns.mean()),
+            recheck=recheck, chains=len(crowd.members),
+        )  # fmt: skip
+        _, record = crowd.ask_session(request)
+        path_unchecked = None if recheck is None else recheck.path_unchecked
+        stats.append(augment(record.answers, returns.tolist(), path_unchecked).stats)
+        rows = _crowd_rows(record, session * len(rewards))
+        evidence += rows
+        truth += [returns[f - session * len(rewards)] > returns[s - session * len(rewards)]
+                  for f, s, _, _, _ in rows]  # fmt: skip
+        recheck = recheck and recheck.after(record.answers)
+    return stats, _member_rows(crowd, evidence, truth)
+
+
+def _crowd_rows(record: SessionRecord, offset: int) -> list[tuple[int, int, str, str, None]]:
+    """The session's answers as reliability evidence, segment ids made unique per run."""
+    assert record.crowd is not None
+    crowd = record.crowd
+    asked = [*zip(record.answers, crowd.answered_by, strict=True)]
+    asked += [(o.answered, o.annotator) for o in crowd.second_opinions]
+    return [(a.first + offset, a.second + offset, a.answer.value, who, None) for a, who in asked]
+
+
+def _member_rows(
+    crowd: CrowdSource, evidence: list[tuple[int, int, str, str, None]], truth: list[bool]
+) -> tuple[dict[str, object], ...]:
+    estimates = estimate_reliability(evidence_rows(evidence))
+    rows = []
+    for member in crowd.members:
+        strict = [
+            (answer == "first") != first_better
+            for (_, _, answer, who, _), first_better in zip(evidence, truth, strict=True)
+            if who == member.name and answer in ("first", "second")
+        ]
+        found = estimates.get(member.name)
+        row: dict[str, object] = {"name": member.name, "true_error_rate": _mean(strict)}
+        if found is not None:
+            row.update(estimate=found.estimate, low=found.low, high=found.high)
+            row.update(answers=found.answers, agreement=found.agreement, flagged=found.flagged)
+        rows.append(row)
+    return tuple(rows)
+
+
+def _mean(values: list[bool]) -> float | None:
+    return float(np.mean(values)) if values else None
+
+
 def simulate_cell(
     scheme: str,
     teacher_name: str,
@@ -124,13 +194,20 @@ def simulate_cell(
     rng: np.random.Generator,
     augment_name: str = "full",
     checking: Recheck | None = None,
+    overlap: float = 0.1,
 ) -> CellResult:
     """`teacher_name`: a scripted teacher as `--teacher` takes it (a preset, optionally with
-    knobs: `mistake,eps_mistake=0.2`); `checking` sets `augment checked`'s re-checks and
-    trusted paths (default Recheck())."""
-    teacher = ScriptedTeacher(scripted_config(teacher_name))
+    knobs: `mistake,eps_mistake=0.2`), or a crowd of them (`crowd:oracle+noisy`, its
+    answers shared out as in a run, `overlap` of them asked again of a second member);
+    `checking` sets `augment checked`'s re-checks and trusted paths (default Recheck())."""
     recheck = None if augment_name == "full" else checking or Recheck()
-    stats = run_sessions(scheme, teacher, questions, sessions, rng, recheck)
+    members: tuple[dict[str, object], ...] = ()
+    if teacher_name.startswith("crowd:"):
+        crowd = CrowdSource(parse_teacher(teacher_name).members, overlap)
+        stats, members = run_crowd_sessions(scheme, crowd, questions, sessions, rng, recheck)
+    else:
+        teacher = ScriptedTeacher(scripted_config(teacher_name))
+        stats = run_sessions(scheme, teacher, questions, sessions, rng, recheck)
     ppq = np.array([s.pairs_per_question for s in stats])
     max_deg = np.array([s.max_degree for s in stats], dtype=np.float64)
     inferred = sum(s.inferred for s in stats)
@@ -153,6 +230,7 @@ def simulate_cell(
         skipped_per_session=float(np.mean([s.skipped for s in stats])),
         equal_per_session=float(np.mean([s.equal for s in stats])),
         cyclic_components_per_session=float(np.mean([s.cyclic_components for s in stats])),
+        members=members,
     )
 
 
@@ -165,6 +243,7 @@ def simulate(
     on_cell: Callable[[CellResult], None] | None = None,
     augments: Sequence[str] = ("full",),
     checking: Recheck | None = None,
+    overlap: float = 0.1,
 ) -> list[CellResult]:
     """Every (scheme, augmentation, teacher) cell. Each (scheme, teacher) has its own
     stream derived from `seed`, which its augmentations share (common random numbers)."""
@@ -174,7 +253,9 @@ def simulate(
     for (scheme, teacher), stream in zip(cells, streams, strict=True):
         for augment_name in augments:
             rng = np.random.default_rng(stream)
-            cell = simulate_cell(scheme, teacher, questions, sessions, rng, augment_name, checking)
+            cell = simulate_cell(
+                scheme, teacher, questions, sessions, rng, augment_name, checking, overlap
+            )
             results.append(cell)
             if on_cell is not None:
                 on_cell(cell)

@@ -45,6 +45,9 @@ MEANINGS = {
     "selection": "which segments are asked about: uniform, disagreement, entropy",
     "oversample": "disagreement and entropy: candidates per question",
     "episodes_kept": "recent episodes that segments are cut from",
+    "overlap": "a crowd's share of answers also asked of a second member, for agreement (0 to 1)",
+    "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
+    "is right) or none (answers as given)",
     "query_episodes": "QPA: cut new segments from the last N episodes only (0: all kept)",
     "hybrid_replay": "QPA: share of each agent batch from recent transitions while "
     "feedback is asked for (0: off)",

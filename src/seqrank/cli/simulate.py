@@ -11,12 +11,17 @@ from typing import Any
 from rich.console import Console
 
 from seqrank import console_tables
-from seqrank.cli.options import int_between, names, seed_number
+from seqrank.cli.options import int_between, names, number_between, seed_number
 from seqrank.cli.reward_bench import teacher_list
 from seqrank.errors import UsageError
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SCHEMES
-from seqrank.feedback.teachers import TEACHER_PRESETS, scripted_config
+from seqrank.feedback.teachers import (
+    CROWD_PREFIX,
+    TEACHER_PRESETS,
+    parse_teacher,
+    scripted_config,
+)
 from seqrank.simulate import AUGMENTS, simulate
 
 # Recheck fields that a run's loop sets, not the user: left out of the printed settings
@@ -53,7 +58,14 @@ def add_parser(commands: Any) -> None:
         f"({', '.join(TEACHER_PRESETS)}), each optionally followed by its knobs, "
         "comma-separated: a knob=value part belongs to the teacher before it, e.g. "
         "oracle,mistake,eps_mistake=0.2; ';' also separates teachers, e.g. "
-        "'oracle;beta=1' (default: every preset)",
+        "'oracle;beta=1'; or a simulated crowd, crowd:oracle+mistake+noisy, whose "
+        "members' estimated reliability is printed (default: every preset)",
+    )
+    sim.add_argument(
+        "--overlap",
+        type=number_between(0.0, 1.0),
+        default=0.1,
+        help="a crowd's share of answers also asked of a second member (default: %(default)s)",
     )
     sim.add_argument(
         "--augment",
@@ -106,7 +118,9 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         raise UsageError(str(problem)) from None
     for teacher in args.teachers:  # each checked before anything runs
         try:
-            scripted_config(teacher)
+            if not teacher.startswith(CROWD_PREFIX):
+                scripted_config(teacher)
+            parse_teacher(teacher)
         except ValueError as problem:
             raise UsageError(f"--teachers {teacher!r}: {problem}") from None
     with console_tables.progress_bar(err) as progress:
@@ -121,6 +135,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             on_cell=lambda cell: progress.advance(task),
             augments=args.augment,
             checking=checking,
+            overlap=args.overlap,
         )
     args.out.mkdir(parents=True, exist_ok=True)
     payload = {
@@ -130,6 +145,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "schemes": args.schemes,
             "teachers": args.teachers,
             "augment": args.augment,
+            "overlap": args.overlap,
             "recheck": {k: v for k, v in asdict(checking).items() if k not in _RUN_STATE},
             "seed": args.seed,
         },

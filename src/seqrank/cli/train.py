@@ -161,7 +161,9 @@ def _check_with_env(config: TrainConfig) -> None:
     try:
         check_fits(config, env)
         if config.teacher_spec.kind == "replay":  # (`label online` brings its own source)
-            make_source(config.teacher).check_compatible(config.task, env.obs_dim, env.act_dim)
+            make_source(config.teacher, config.overlap).check_compatible(
+                config.task, env.obs_dim, env.act_dim
+            )
     finally:
         env.close()
 

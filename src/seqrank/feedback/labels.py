@@ -10,12 +10,26 @@ import torch
 from seqrank.episodes import Segments
 from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
+from seqrank.feedback.crowd_record import CrowdRecord
+from seqrank.feedback.reliability import (
+    Reliability,
+    estimate_reliability,
+    evidence_rows,
+    soft_label,
+)
 from seqrank.feedback.schemes import SessionRecord
-from seqrank.types import Answer
+from seqrank.types import Answer, LabelledPair
+
+# a crowd's answer as stored: (first, second) as store ids, answer, annotator, the model's
+# P(first) before the session (None before its first fit)
+CrowdAnswer = tuple[int, int, str, str, float | None]
 
 
 class LabelStore:
-    def __init__(self) -> None:
+    """`weighting` "reliability": a crowd's labels train as the probability that their
+    annotator is right (`seqrank.feedback.reliability`); "none": as answered."""
+
+    def __init__(self, weighting: str = "none") -> None:
         self.segments: list[np.ndarray] = []  # (H, obs+act) each
         self.segment_returns: list[float] = []
         self.segment_rewards: list[np.ndarray] = []  # true per-step rewards, for the export
@@ -30,6 +44,11 @@ class LabelStore:
         # every asked question in order, skips included, for the label export:
         # (session, scheme, first, second, answer, first is the defender); ids index segments
         self.asked: list[tuple[int, str, int, int, str, bool]] = []
+        # a crowd's: each pair's annotator ("" for one teacher), every answer (second
+        # opinions too) as reliability evidence
+        self.weighting = weighting
+        self.annotator: list[str] = []
+        self.crowd_answers: list[CrowdAnswer] = []
 
     def __len__(self) -> int:
         return len(self.labels)
@@ -52,12 +71,12 @@ class LabelStore:
             self.segment_rewards.append(np.asarray(segments.rewards[pool_id], np.float32))
             self.segment_states.append(segments.states[pool_id])
             self.segment_contexts.append(segments.contexts[pool_id])
+        crowd = None if record is None else record.crowd
+        owner = _segment_owners(record) if record is not None and crowd is not None else {}
         for pair in augmentation.pairs:
-            self.first.append(offset[pair.first])
-            self.second.append(offset[pair.second])
-            self.labels.append(pair.label)
-            self.inferred.append(pair.inferred)
-            self.session.append(session)
+            self._add_pair(pair, offset, session, owner.get(pair.first, ""))
+        if crowd is not None:
+            self._add_crowd(crowd, record.answers if record else (), offset, session)
         if record is None:
             return
         for asked in record.answers:
@@ -65,6 +84,49 @@ class LabelStore:
             first, second = offset[question.first], offset[question.second]
             row = (session, record.scheme, first, second, asked.answer.value)
             self.asked.append((*row, question.first_is_defender))
+
+    def _add_pair(
+        self, pair: LabelledPair, offset: dict[int, int], session: int, annotator: str
+    ) -> None:
+        self.first.append(offset[pair.first])
+        self.second.append(offset[pair.second])
+        self.labels.append(pair.label)
+        self.inferred.append(pair.inferred)
+        self.session.append(session)
+        self.annotator.append(annotator)
+
+    def _add_crowd(
+        self, crowd: CrowdRecord, answers: Any, offset: dict[int, int], session: int
+    ) -> None:
+        """The second opinions as asked pairs of their own (never chained), and every
+        answer as reliability evidence."""
+        for opinion in crowd.second_opinions:
+            asked = opinion.answered
+            if asked.answer.label is not None:
+                pair = LabelledPair(asked.first, asked.second, asked.answer.label, False)
+                self._add_pair(pair, offset, session, opinion.annotator)
+        everyone = [*crowd.answered_by, *(o.annotator for o in crowd.second_opinions)]
+        asked_all = [*answers, *(o.answered for o in crowd.second_opinions)]
+        models = crowd.model_first or (None,) * len(asked_all)
+        for asked, annotator, model in zip(asked_all, everyone, models, strict=True):
+            first, second = offset[asked.first], offset[asked.second]
+            self.crowd_answers.append((first, second, asked.answer.value, annotator, model))
+
+    def reliability(self) -> dict[str, Reliability]:
+        """A crowd's annotators' reliability from every answer so far (empty for one
+        teacher)."""
+        return estimate_reliability(evidence_rows(self.crowd_answers))
+
+    def training_labels(self) -> list[float]:
+        """The labels reward training fits: as answered, or (a crowd, weighted by
+        reliability) each the probability that it is right."""
+        if self.weighting != "reliability" or not any(self.annotator):
+            return self.labels
+        trust = {name: r.estimate for name, r in self.reliability().items()}
+        return [
+            soft_label(label, trust[name]) if name in trust else label
+            for label, name in zip(self.labels, self.annotator, strict=True)
+        ]
 
     def teacher_contradicted(self) -> bool:
         """Whether two stored answers to the same pair disagree (a re-check that did not
@@ -84,7 +146,7 @@ class LabelStore:
         segments = torch.as_tensor(np.stack([self.segments[i] for i in used]), device=device)
         first_t = torch.as_tensor(inverse[: len(first)], dtype=torch.long, device=device)
         second_t = torch.as_tensor(inverse[len(first) :], dtype=torch.long, device=device)
-        labels = torch.as_tensor(self.labels[rows], dtype=torch.float32, device=device)
+        labels = torch.as_tensor(self.training_labels()[rows], dtype=torch.float32, device=device)
         return segments, first_t, second_t, labels
 
     def state_dict(self) -> dict[str, Any]:
@@ -93,3 +155,15 @@ class LabelStore:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         for name, value in state.items():
             setattr(self, name, value)
+        if len(self.annotator) < len(self.labels):  # saved before crowds had annotators
+            self.annotator = [""] * len(self.labels)
+
+
+def _segment_owners(record: SessionRecord) -> dict[int, str]:
+    """Pool id -> the annotator whose chain drew the segment."""
+    assert record.crowd is not None
+    owners: dict[int, str] = {}
+    for asked, name in zip(record.answers, record.crowd.answered_by, strict=True):
+        owners.setdefault(asked.first, name)
+        owners.setdefault(asked.second, name)
+    return owners

@@ -33,6 +33,7 @@ import numpy as np
 
 from seqrank.choices import parse_choice
 from seqrank.feedback.checking import Recheck, confirmed_answer
+from seqrank.feedback.crowd_record import CrowdRecord
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 Ask = Callable[[int, int], Answer]
@@ -72,6 +73,7 @@ class SessionRecord:
     # (winner, loser) of the answers the fitted model agreed with instead of a repeat
     # (`augment checked`); the closure may take them as confirmed
     vouched: frozenset[tuple[int, int]] = frozenset()
+    crowd: CrowdRecord | None = None  # a crowd's session: who answered what
 
     @property
     def asked(self) -> int:
@@ -248,10 +250,11 @@ def get_scheme(name: str) -> Scheme:
         raise ValueError(f"unknown scheme {name!r}; accepted: {', '.join(SCHEMES)}") from None
 
 
-def segments_needed(scheme: str, budget: int) -> int:
-    """How many distinct segments a session of `budget` questions may draw."""
+def segments_needed(scheme: str, budget: int, chains: int = 1) -> int:
+    """How many distinct segments a session of `budget` questions may draw, asked as
+    `chains` chains of its scheme side by side (a crowd's session, one chain a person)."""
     has_defender = scheme_has_defender(scheme)
-    return budget + 1 if has_defender else 2 * budget
+    return budget + min(chains, budget) if has_defender else 2 * budget
 
 
 def _check_pool(scheme: str, pool_size: int, budget: int) -> None:

@@ -46,6 +46,10 @@ class SessionRequest:
 
     # with `query_episodes`: the numbers of the first and last episode the pool is cut from
     episodes: tuple[int, int] | None = None
+    # a crowd's sessions, once the model is fit: its predicted return of each pooled
+    # segment, from which the annotators' reliability is estimated (`feedback.reliability`)
+    model_returns: tuple[float, ...] | None = None
+    chains: int = 1  # asked as this many chains side by side (a crowd: one per person)
 
 
 class FeedbackSource(Protocol):
@@ -98,6 +102,7 @@ class SessionPlan:
     segment_length: int
     recheck: Recheck | None = None
     query_episodes: int = 0  # QPA: cut the pool from the last N episodes only (0: all kept)
+    crowd: int = 0  # the members of a crowd answering the sessions (0: one teacher)
 
 
 @dataclass(frozen=True)
@@ -134,7 +139,8 @@ def prepare_session(
     `model_fit`: the reward model has been fit to labels; `augment checked` then does not
     ask again a teacher who has never contradicted themselves where the model agrees.
     """
-    needed = segments_needed(plan.scheme, questions)
+    chains = max(1, plan.crowd)
+    needed = segments_needed(plan.scheme, questions, chains)
     use_model = informative and plan.selection != "uniform"
     pool = needed * (plan.oversample if use_model else 1)
     last = plan.query_episodes
@@ -142,7 +148,9 @@ def prepare_session(
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
     window = episodes.window(last) if last else None
-    recheck = plan.recheck
+    recheck, opinions = plan.recheck, None
+    if plan.crowd and model_fit:
+        opinions = tuple(reward_model.member_returns(sampled.features).mean(axis=0).tolist())
     if recheck is not None and contradicted:
         recheck = replace(recheck, contradicted=True)
     if recheck is not None and model_fit:
@@ -160,6 +168,8 @@ def prepare_session(
         margin,
         recheck=recheck,
         episodes=window,
+        model_returns=opinions,
+        chains=chains,
     )
 
 

@@ -1,5 +1,6 @@
 """Who answers a run's questions, from its `--teacher` value: a scripted preset, labels
-recorded earlier (`replay:FILE`), or a person (`human`, served by `seqrank label online`)."""
+recorded earlier (`replay:FILE`), a simulated crowd (`crowd:oracle+noisy`), or a person
+(`human`, served by `seqrank label online`)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,15 @@ from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
 
-def make_source(teacher: str) -> FeedbackSource:
+def make_source(teacher: str, overlap: float = 0.1) -> FeedbackSource:
     """The feedback source a `--teacher` value stands for; ValueError for `human` (it
-    needs the labelling page) and for values `parse_teacher` refuses."""
+    needs the labelling page) and for values `parse_teacher` refuses. `overlap`: the
+    share of a crowd's answers also asked of a second member."""
     spec = parse_teacher(teacher)
+    if spec.kind == "crowd":
+        from seqrank.feedback.crowd import CrowdSource
+
+        return CrowdSource(spec.members, overlap)
     if spec.kind == "replay":
         from seqrank.feedback.replay import ReplaySource
 

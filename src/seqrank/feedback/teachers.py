@@ -152,19 +152,87 @@ class TeacherSpec:
       changed (`mistake,eps_mistake=0.2`), or knobs alone from the oracle
       (`beta=1,gamma=0.95`); knobs: beta, gamma, eps_mistake, eps_skip, eps_equal, tie_rule;
     - `replay:FILE`: labels exported earlier, replayed session by session;
+    - `crowd:oracle+mistake+noisy`: a simulated crowd of scripted annotators sharing each
+      session (`seqrank.feedback.crowd`);
     - `human`: a person at the labelling page (`seqrank label online`).
     """
 
-    kind: Literal["scripted", "replay", "human"]
+    kind: Literal["scripted", "replay", "human", "crowd"]
     scripted: TeacherConfig | None = None
     replay_file: str | None = None
     short_name: str = "oracle"  # for run directory names: a preset, custom, replay, human
+    members: tuple[CrowdMember, ...] = ()  # a simulated crowd's (`crowd:oracle+noisy`)
+
+
+@dataclass(frozen=True)
+class CrowdMember:
+    """One scripted annotator of a simulated crowd, who takes `seconds` an answer."""
+
+    name: str
+    teacher: TeacherConfig
+    seconds: float = 3.0
+
+
+CROWD_PREFIX = "crowd:"
+MEMBER_KNOBS = ("name", "time")  # beside the B-Pref knobs, in a crowd member only
+
+
+def parse_crowd(value: str) -> TeacherSpec:
+    """`crowd:MEMBER+MEMBER+...`, each member a scripted teacher as `--teacher` takes it,
+    optionally with `time=SECONDS` (its answer time, 3 by default) and `name=NAME`;
+    unnamed members are called by their preset (`oracle`, `oracle-2`, ...)."""
+    body = value.removeprefix(CROWD_PREFIX)
+    members: list[CrowdMember] = []
+    for text in body.split("+"):
+        if not text.strip():
+            raise SettingError(
+                f"{setting('teacher')} {value!r}: an empty crowd member; write members as "
+                "crowd:oracle+mistake+noisy (each a preset, optionally with ,knob=value)"
+            )
+        members.append(_crowd_member(text.strip(), value, [m.name for m in members]))
+    short = "crowd-" + "+".join(m.name for m in members)
+    return TeacherSpec("crowd", short_name=short, members=tuple(members))
+
+
+def _crowd_member(text: str, value: str, taken: list[str]) -> CrowdMember:
+    parts = [part.strip() for part in text.split(",")]
+    extra = {p.partition("=")[0].strip(): p.partition("=")[2].strip() for p in parts if "=" in p}
+    teacher = ",".join(p for p in parts if p.partition("=")[0].strip() not in MEMBER_KNOBS)
+    also = "; a crowd member also takes time= and name="
+    spec = parse_scripted_teacher(teacher or "oracle", also)
+    assert spec.scripted is not None
+    name = extra.get("name") or (spec.short_name if spec.short_name != "custom" else "member")
+    if "name" in extra and (not name or name in taken or not name.replace("-", "").isalnum()):
+        raise SettingError(
+            f"{setting('teacher')} {value!r}: member name {name!r} must be letters, digits "
+            f"and '-', unique in the crowd (taken: {', '.join(taken) or 'none'})"
+        )
+    if "name" not in extra:
+        base, number = name, 2
+        while name in taken:
+            name, number = f"{base}-{number}", number + 1
+    seconds = _member_seconds(extra.get("time", "3"), value)
+    return CrowdMember(name, spec.scripted, seconds)
+
+
+def _member_seconds(text: str, value: str) -> float:
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise SettingError(
+            f"{setting('teacher')} {value!r}: time must be a number of seconds > 0, got {text!r}"
+        )
+    return seconds
 
 
 def parse_teacher(value: str) -> TeacherSpec:
     """The spec `value` stands for; a ValueError names what is wrong and what is accepted."""
     if value == "human":
         return TeacherSpec("human", short_name="human")
+    if value.startswith(CROWD_PREFIX):
+        return parse_crowd(value)
     if value.startswith("replay:"):
         path = value.removeprefix("replay:")
         if not path:
@@ -173,7 +241,8 @@ def parse_teacher(value: str) -> TeacherSpec:
             )
         return TeacherSpec("replay", replay_file=path, short_name="replay")
     others = (
-        ", knob=value,..., human (the labelling page) or replay:FILE (labels exported as JSONL)"
+        ", knob=value,..., human (the labelling page), replay:FILE (labels exported as "
+        "JSONL) or crowd:MEMBER+MEMBER (a simulated crowd)"
     )
     return parse_scripted_teacher(value, others)
 

@@ -76,11 +76,11 @@ def task_names(env: Any) -> tuple[str, str]:
 
 
 def make_teacher(
-    teacher: str | FeedbackSource | Callable[..., Any], obs_dim: int
+    teacher: str | FeedbackSource | Callable[..., Any], obs_dim: int, overlap: float = 0.1
 ) -> FeedbackSource | None:
     """The source of a teacher value; None for `human` (the labelling page's)."""
     if isinstance(teacher, str):
-        return None if teacher == "human" else make_source(teacher)
+        return None if teacher == "human" else make_source(teacher, overlap)
     if hasattr(teacher, "ask_session"):
         return teacher  # type: ignore[return-value]
     if callable(teacher):

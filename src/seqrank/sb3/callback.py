@@ -82,7 +82,7 @@ class PreferenceFeedback(BaseCallback):
         if task.episode_length is not None:
             check_episode_fits(config, task.episode_length, task.has_terminals)
         self.task = task
-        source = make_teacher(teacher, task.obs_dim)
+        source = make_teacher(teacher, task.obs_dim, config.overlap)
         self.page = None
         if source is None:  # the person at the labelling page
             from seqrank.sb3.page import open_page

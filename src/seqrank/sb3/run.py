@@ -39,7 +39,7 @@ class FeedbackRun:
         torch.manual_seed(config.seed)  # the reward model's initial weights, as in a run
         self.reward_model = make_reward_model(config, obs_dim + act_dim, device)
         self.episodes = EpisodeStore(config.episodes_kept)
-        self.labels = LabelStore()
+        self.labels = LabelStore(config.crowd_weighting.value)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
         self.counters = Counters()

@@ -83,8 +83,8 @@ class Trainer:
         train_on = "true_reward" if config.reward is RewardSignal.TRUE else "reward"
         self.replay = ReplayBuffer(kept + config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
-        self.labels = LabelStore()
-        self.source = source if source is not None else make_source(config.teacher)
+        self.labels = LabelStore(config.crowd_weighting.value)
+        self.source = source if source is not None else make_source(config.teacher, config.overlap)
         self.source.check_compatible(config.task, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)

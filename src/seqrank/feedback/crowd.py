@@ -1,0 +1,227 @@
+"""A crowd answering one run: each session shared out as chains, one chain a person.
+
+The choices this module makes (issue 37; README "A team of annotators"):
+- a session's questions are split evenly over its people, and its candidate pool into
+  disjoint slices, one a chain: each person runs the session's scheme over their own
+  slice, so a sequential, root or ranked chain stays with one person, and since the slices
+  share no segment, transitivity is only ever drawn through one person's answers;
+- a share `overlap` of the answered questions is asked again of a second person; those
+  answers measure agreement and train the model as asked pairs, but never enter a closure;
+- a crowd of one asks exactly what a single teacher asks (same pool, same draws).
+
+`CrowdSource` is the simulated crowd of scripted members (`--teacher crowd:...`), whose
+answer times give the session's length with its people answering side by side.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from seqrank.episodes import Segments
+from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
+from seqrank.feedback.schemes import Ask, SessionRecord, get_scheme, segments_needed
+from seqrank.feedback.session import SessionRequest
+from seqrank.feedback.teachers import CrowdMember, ScriptedTeacher
+from seqrank.types import Answer, AnsweredQuestion, Question
+
+
+@dataclass(frozen=True)
+class Chain:
+    """One person's share of a session: the pool ids it draws from and its questions."""
+
+    pool_ids: tuple[int, ...]
+    budget: int
+
+
+def share_session(scheme: str, questions: int, pool_size: int, people: int) -> list[Chain]:
+    """The session's chains: questions split evenly (the first chains take the remainder;
+    no chain for a person beyond the questions), the pool cut into contiguous slices in
+    proportion to what each chain needs. ValueError when the pool is too small."""
+    if people < 1:
+        raise ValueError(f"a session needs at least one person to answer, got {people}")
+    chains = min(people, questions)
+    budgets = [questions // chains + (1 if k < questions % chains else 0) for k in range(chains)]
+    needs = [segments_needed(scheme, b) for b in budgets]
+    if pool_size < sum(needs):
+        raise ValueError(
+            f"{scheme}: {chains} chains of {budgets} questions need {sum(needs)} segments, "
+            f"but the pool has {pool_size}"
+        )
+    scale = pool_size // sum(needs)
+    sizes = [need * scale for need in needs]
+    sizes[-1] += pool_size - sum(sizes)
+    starts = np.cumsum([0, *sizes])
+    return [
+        Chain(tuple(range(int(starts[k]), int(starts[k + 1]))), budgets[k]) for k in range(chains)
+    ]
+
+
+def run_chain(
+    request: SessionRequest, chain: Chain, ask: Ask, rng: np.random.Generator
+) -> SessionRecord:
+    """The session's scheme over the chain's slice only, with its chooser and re-check
+    seeing pool ids; the record comes back in pool ids."""
+    ids = chain.pool_ids
+
+    def ask_local(first: int, second: int) -> Answer:
+        return ask(ids[first], ids[second])
+
+    def choose_local(
+        defender: int | None, available: Sequence[int], rng: np.random.Generator
+    ) -> int:
+        known = None if defender is None else ids[defender]
+        return request.chooser(known, [ids[i] for i in available], rng)
+
+    recheck = request.recheck
+    if recheck is not None and recheck.model_returns is not None:
+        opinions = recheck.model_returns
+        recheck = replace(recheck, model_returns=tuple(opinions[i] for i in ids))
+    scheme = get_scheme(request.scheme)
+    record = scheme(len(ids), chain.budget, ask_local, rng, choose_local, recheck)
+    return _in_pool_ids(record, ids)
+
+
+def _in_pool_ids(record: SessionRecord, ids: tuple[int, ...]) -> SessionRecord:
+    answers = tuple(
+        AnsweredQuestion(replace(a.question, first=ids[a.first], second=ids[a.second]), a.answer)
+        for a in record.answers
+    )
+    vouched = frozenset((ids[w], ids[loser]) for w, loser in record.vouched)
+    return replace(
+        record, answers=answers, segments=tuple(ids[s] for s in record.segments), vouched=vouched
+    )
+
+
+def chain_rngs(request: SessionRequest, chains: int) -> list[np.random.Generator]:
+    """Each chain's generator: the session's own for a single chain (a crowd of one asks
+    what one teacher asks), else seeded from its draws (not `spawn`: a generator's
+    restored state, as a resumed run has it, does not carry its spawn count)."""
+    if chains == 1:
+        return [request.rng]
+    seeds = request.rng.integers(2**63, size=chains)
+    return [np.random.default_rng(int(seed)) for seed in seeds]
+
+
+def merge_chains(
+    scheme: str, records: Sequence[SessionRecord], owners: Sequence[str]
+) -> SessionRecord:
+    """One session record of the chains, questions numbered in chain order."""
+    answers: list[AnsweredQuestion] = []
+    answered_by: list[str] = []
+    for record, owner in zip(records, owners, strict=True):
+        for asked in record.answers:
+            question = replace(asked.question, index=len(answers))
+            answers.append(AnsweredQuestion(question, asked.answer))
+            answered_by.append(owner)
+    return SessionRecord(
+        scheme,
+        tuple(answers),
+        tuple(s for record in records for s in record.segments),
+        frozenset().union(*(record.vouched for record in records)),
+        crowd=CrowdRecord(tuple(answered_by)),
+    )
+
+
+def model_first(request: SessionRequest, first: int, second: int) -> float | None:
+    """The model's P(first preferred) before the session (None before its first fit)."""
+    returns = request.model_returns
+    if returns is None:
+        return None
+    difference = float(np.clip(returns[first] - returns[second], -50.0, 50.0))
+    return 1.0 / (1.0 + math.exp(-difference))
+
+
+def with_opinions(
+    request: SessionRequest,
+    record: SessionRecord,
+    second_opinions: Sequence[SecondOpinion],
+    times: dict[str, float],
+) -> SessionRecord:
+    """The record with its second opinions, the model's view of each asked pair and the
+    session's times (`times`: each person's answering seconds)."""
+    assert record.crowd is not None
+    asked = [*record.answers, *(s.answered for s in second_opinions)]
+    crowd = replace(
+        record.crowd,
+        second_opinions=tuple(second_opinions),
+        model_first=tuple(model_first(request, a.first, a.second) for a in asked),
+        seconds=max(times.values(), default=0.0),
+        person_seconds=sum(times.values()),
+    )
+    return replace(record, crowd=crowd)
+
+
+def overlap_picks(
+    record: SessionRecord, people: int, overlap: float, rng: np.random.Generator
+) -> list[tuple[int, int]]:
+    """(answer index, second person's index) for the answers asked again: each answered
+    question with probability `overlap`, of someone other than its owner."""
+    if people < 2 or overlap <= 0 or record.crowd is None:
+        return []
+    picks = []
+    for k, asked in enumerate(record.answers):
+        draw, other = rng.random(), int(rng.integers(people - 1))
+        if asked.answer is not Answer.SKIP and draw < overlap:
+            picks.append((k, other))
+    return picks
+
+
+class CrowdSource:
+    """A simulated crowd: scripted members, each answering its chain, at its own pace."""
+
+    def __init__(self, members: Sequence[CrowdMember], overlap: float):
+        if not members:
+            raise ValueError("a crowd needs at least one member")
+        self.members, self.overlap = tuple(members), overlap
+
+    def has_session(self, session: int) -> bool:
+        return True
+
+    def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
+        pass
+
+    def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
+        rewards = request.segments.rewards
+        teachers = [ScriptedTeacher(m.teacher).with_margin(request.margin) for m in self.members]
+        chains = share_session(request.scheme, request.questions, len(rewards), len(teachers))
+        rngs = chain_rngs(request, len(chains))
+        answers = dict.fromkeys((m.name for m in self.members), 0)
+
+        def asker(person: int, rng: np.random.Generator) -> Ask:
+            def ask(first: int, second: int) -> Answer:
+                answers[self.members[person].name] += 1
+                return teachers[person].answer(rewards[first], rewards[second], rng)
+
+            return ask
+
+        records = [
+            run_chain(request, chain, asker(k, rng), rng)
+            for k, (chain, rng) in enumerate(zip(chains, rngs, strict=True))
+        ]
+        owners = [m.name for m in self.members[: len(chains)]]
+        record = merge_chains(request.scheme, records, owners)
+        seconds = self._second_opinions(record, rngs, asker)
+        times = {m.name: answers[m.name] * m.seconds for m in self.members}
+        return request.segments, with_opinions(request, record, seconds, times)
+
+    def _second_opinions(
+        self,
+        record: SessionRecord,
+        rngs: Sequence[np.random.Generator],
+        asker: Callable[[int, np.random.Generator], Ask],
+    ) -> list[SecondOpinion]:
+        assert record.crowd is not None
+        names = [m.name for m in self.members]
+        rng = rngs[0]
+        opinions = []
+        for k, other in overlap_picks(record, len(names), self.overlap, rng):
+            asked, owner = record.answers[k], names.index(record.crowd.answered_by[k])
+            person = other if other < owner else other + 1
+            question = Question(k, asked.first, asked.second, asked.question.first_is_defender)
+            answer = asker(person, rng)(asked.first, asked.second)
+            opinions.append(SecondOpinion(AnsweredQuestion(question, answer), names[person]))
+        return opinions

@@ -1,0 +1,33 @@
+"""What a crowd's session records beside its answers: who gave each, the answers asked of
+a second person (for agreement; the closure never chains them), the reward model's
+opinion of each asked pair, and how long the session took its people."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from seqrank.types import AnsweredQuestion
+
+
+@dataclass(frozen=True)
+class SecondOpinion:
+    """A question of someone's chain asked again of `annotator`."""
+
+    answered: AnsweredQuestion
+    annotator: str
+
+
+@dataclass(frozen=True)
+class CrowdRecord:
+    answered_by: tuple[str, ...]  # the annotator of each of the record's answers
+    second_opinions: tuple[SecondOpinion, ...] = ()
+    # the model's P(first preferred) before the session, for each answer and then each
+    # second opinion; None where the model had not been fit yet
+    model_first: tuple[float | None, ...] = ()
+    seconds: float = 0.0  # the session's length, its people answering side by side
+    person_seconds: float = 0.0  # everybody's answering time added up
+
+    def annotators(self) -> list[str]:
+        """Everyone who answered in the session, in order of first answer."""
+        seen = [*self.answered_by, *(s.annotator for s in self.second_opinions)]
+        return list(dict.fromkeys(seen))
