@@ -62,12 +62,6 @@ def add_parser(commands: Any) -> None:
         "members' estimated reliability is printed (default: every preset)",
     )
     sim.add_argument(
-        "--overlap",
-        type=number_between(0.0, 1.0),
-        default=0.1,
-        help="a crowd's share of answers also asked of a second member (default: %(default)s)",
-    )
-    sim.add_argument(
         "--augment",
         type=names(list(AUGMENTS), "augmentation"),
         default=["full"],
@@ -75,6 +69,7 @@ def add_parser(commands: Any) -> None:
         "re-checks and fewer unrepeated answers per inferred pair) (default: full)",
     )
     _add_checking(sim)
+    _add_crowd(sim)
     sim.add_argument("--seed", type=seed_number, default=0, help="seed (default: 0)")
     sim.add_argument(
         "--out",
@@ -90,6 +85,15 @@ def add_parser(commands: Any) -> None:
         help="what to print on stdout (the JSON file is written either way)",
     )
     sim.set_defaults(handler=run)
+
+
+def _add_crowd(sim: argparse.ArgumentParser) -> None:
+    sim.add_argument(
+        "--overlap",
+        type=number_between(0.0, 1.0),
+        default=0.1,
+        help="a crowd's share of answers also asked of a second member (default: %(default)s)",
+    )
 
 
 def _add_checking(sim: argparse.ArgumentParser) -> None:

@@ -12,6 +12,7 @@ from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
 from seqrank.feedback.crowd_record import CrowdRecord
 from seqrank.feedback.reliability import (
+    MODEL,
     Reliability,
     estimate_reliability,
     evidence_rows,
@@ -114,15 +115,16 @@ class LabelStore:
 
     def reliability(self) -> dict[str, Reliability]:
         """A crowd's annotators' reliability from every answer so far (empty for one
-        teacher)."""
-        return estimate_reliability(evidence_rows(self.crowd_answers))
+        teacher); the reward model's own, as a voter, is left out."""
+        estimates = estimate_reliability(evidence_rows(self.crowd_answers))
+        return {name: r for name, r in estimates.items() if name != MODEL}
 
     def training_labels(self) -> list[float]:
         """The labels reward training fits: as answered, or (a crowd, weighted by
         reliability) each the probability that it is right."""
         if self.weighting != "reliability" or not any(self.annotator):
             return self.labels
-        trust = {name: r.estimate for name, r in self.reliability().items()}
+        trust = self.reliability()
         return [
             soft_label(label, trust[name]) if name in trust else label
             for label, name in zip(self.labels, self.annotator, strict=True)

@@ -1,39 +1,41 @@
 """How far each annotator of a crowd can be trusted, estimated from their answers.
 
-The model (a "one-coin" Dawid-Skene model, Dawid and Skene 1979, with the reward model as
-the prior of each pair's truth):
+The model (a "one-coin" Dawid-Skene model, Dawid and Skene 1979):
 - annotator j answers a strict question rightly with probability p_j, whatever the pair;
-- the truth of a pair is unknown; its prior is the reward model's P(first preferred)
-  before the session that asked it (clipped to [0.05, 0.95], so that a confident model
-  cannot outvote people; 1/2 before the model's first fit);
-- the answers to one pair (an overlap asks it of two people, a re-check twice of one) are
-  independent given its truth.
-Expectation-maximisation alternates the posterior of each pair's truth given its answers
-and prior with p_j = (right answers expected + 1) / (answers + 2) (the mean of a Beta
-posterior from a uniform prior). Three things inform it, as the issue asks: overlaps (two
-people on one pair), contradictions (one person's answers to one pair that disagree) and
-the model's agreement with each person. The interval is the 95% interval of that Beta
-posterior, counting the expected right answers as observed, so it says how many answers
-the estimate rests on, not how wrong the model may be.
+- the reward model, as it was before the session that asked a pair, is one more voter on
+  the pair (it prefers the segment it predicts the larger return for), with a reliability
+  of its own: its raw probabilities are over-confident after few labels, its vote is not;
+- the opinions on one pair (an overlap asks it of two people, a re-check twice of one, and
+  the model has its vote from the second session on) are independent given the truth,
+  whose prior is 1/2.
+Expectation-maximisation alternates the posterior of each pair's truth given its opinions
+with p_j = the share of j's answers expected right. A pair only one opinion speaks for says
+nothing about anyone's reliability and is left out. Three things inform the estimate, as
+the issue asks: overlaps (two people on one pair), contradictions (one person's answers to
+one pair that disagree) and the reward model's agreement with each person. The estimate
+is the mean and the interval the 95% interval of the Beta posterior (from a uniform prior)
+that counts the expected right answers as observed: the interval says how many answers the
+estimate rests on, not how wrong the model may be.
 
-Why this model: it needs no gold questions, it degrades to the model's agreement when
-nobody overlaps, and its estimate is directly what reward training needs: the
-probability that an answer is right (`soft_label`).
+Why this model: it needs no gold questions, it works with the model alone when nobody
+overlaps, and its estimate is what reward training needs: the probability that an answer
+is right (`soft_label`).
 """
 
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import beta as beta_distribution
 
-PRIOR_CLIP = (0.05, 0.95)
-START = 0.8  # every annotator's reliability before the first iteration
+START = 0.8  # every voter's reliability before the first iteration
 ITERATIONS = 50
-FLAG_BELOW = 0.7  # an annotator estimated below this is flagged (never dropped)
+FLAG_BELOW = 0.7  # an annotator estimated below this is flagged (never dropped) ...
+FLAG_AFTER = 20  # ... once the estimate rests on this many answers
+MODEL = "(model)"  # the reward model's name as a voter (no annotator's name has brackets)
 
 
 @dataclass(frozen=True)
@@ -54,59 +56,62 @@ class Reliability:
     estimate: float  # P(a strict answer of theirs is right)
     low: float  # the 95% interval
     high: float
-    answers: int  # strict answers it rests on
+    answers: int  # strict answers it rests on (on pairs with another opinion)
     overlaps: int  # of them, on pairs somebody else answered too
     agreement: float | None  # share of those agreeing with the other answers (None: none)
 
     @property
     def flagged(self) -> bool:
-        return self.estimate < FLAG_BELOW
+        return self.answers >= FLAG_AFTER and self.estimate < FLAG_BELOW
 
 
 def estimate_reliability(evidence: Sequence[Evidence]) -> dict[str, Reliability]:
-    """Each annotator's reliability, in order of first answer."""
-    names = list(dict.fromkeys(e.annotator for e in evidence))
+    """Each annotator's reliability, in order of first answer (the reward model's under
+    `MODEL`, when it voted)."""
+    votes = _with_model_votes(evidence)
+    names = list(dict.fromkeys(e.annotator for e in votes))
     if not names:
         return {}
-    pairs = list(dict.fromkeys(e.pair for e in evidence))
+    opinions = Counter(e.pair for e in votes)
+    informative = [e for e in votes if opinions[e.pair] > 1]
+    pairs = list(dict.fromkeys(e.pair for e in informative))
     pair_index = {pair: k for k, pair in enumerate(pairs)}
-    who = np.array([names.index(e.annotator) for e in evidence])
-    item = np.array([pair_index[e.pair] for e in evidence])
-    said = np.array([e.said_first for e in evidence])
-    prior = _prior(evidence, item, len(pairs))
-    p = np.full(len(names), START)
-    for _ in range(ITERATIONS):
-        truth_first = _posterior(prior, item, who, said, p)
+    who = np.array([names.index(e.annotator) for e in informative], dtype=np.int64)
+    item = np.array([pair_index[e.pair] for e in informative], dtype=np.int64)
+    said = np.array([e.said_first for e in informative], dtype=bool)
+    answers = np.bincount(who, minlength=len(names))
+    p: np.ndarray = np.full(len(names), START)
+    counted: np.ndarray = np.zeros(len(names))
+    for _ in range(ITERATIONS if len(informative) else 0):
+        truth_first = _posterior(len(pairs), item, who, said, p)
         right = np.where(said, truth_first[item], 1.0 - truth_first[item])
         counted = np.bincount(who, weights=right, minlength=len(names))
-        answers = np.bincount(who, minlength=len(names))
-        p = (counted + 1.0) / (answers + 2.0)
+        p = np.where(answers > 0, counted / np.maximum(answers, 1), START)
     return {
         name: _summary(name, k, counted, answers, who, item, said) for k, name in enumerate(names)
     }
 
 
-def _prior(evidence: Sequence[Evidence], item: np.ndarray, count: int) -> np.ndarray:
-    """Each pair's P(first preferred) before its answers: the model's, averaged over the
-    answers that carry it (an overlap carries it twice)."""
-    total, seen = np.zeros(count), np.zeros(count)
-    for k, e in enumerate(evidence):
+def _with_model_votes(evidence: Sequence[Evidence]) -> list[Evidence]:
+    """The people's answers, and the model's vote on each pair it had an opinion of."""
+    model: dict[tuple[int, int], list[float]] = defaultdict(list)
+    for e in evidence:
         if e.model_first is not None:
-            total[item[k]] += e.model_first
-            seen[item[k]] += 1
-    prior = np.where(seen > 0, total / np.maximum(seen, 1), 0.5)
-    return np.clip(prior, *PRIOR_CLIP)
+            model[e.pair].append(e.model_first)
+    votes = [Evidence(pair, MODEL, float(np.mean(p)) > 0.5, None) for pair, p in model.items()]
+    return [*evidence, *votes]
 
 
 def _posterior(
-    prior: np.ndarray, item: np.ndarray, who: np.ndarray, said: np.ndarray, p: np.ndarray
+    pairs: int, item: np.ndarray, who: np.ndarray, said: np.ndarray, p: np.ndarray
 ) -> np.ndarray:
-    """P(first preferred | the pair's answers) of every pair (in logs, for long runs)."""
-    clipped = np.clip(p[who], 1e-6, 1 - 1e-6)
+    """P(first preferred | the pair's opinions) of every pair, from a prior of 1/2 (sums
+    of logs, so that many opinions on one pair do not underflow)."""
+    clipped = np.clip(p[who], 1e-3, 1 - 1e-3)
     log_if_first = np.where(said, np.log(clipped), np.log1p(-clipped))
     log_if_second = np.where(said, np.log1p(-clipped), np.log(clipped))
-    first = np.log(prior) + np.bincount(item, weights=log_if_first, minlength=len(prior))
-    second = np.log1p(-prior) + np.bincount(item, weights=log_if_second, minlength=len(prior))
+    first = np.bincount(item, weights=log_if_first, minlength=pairs)
+    second = np.bincount(item, weights=log_if_second, minlength=pairs)
     return 1.0 / (1.0 + np.exp(np.clip(second - first, -700, 700)))
 
 
@@ -149,11 +154,14 @@ def _agreement(k: int, who: np.ndarray, item: np.ndarray, said: np.ndarray) -> t
     return agreeing, len(shared)
 
 
-def soft_label(label: float, reliability: float) -> float:
+def soft_label(label: float, reliability: Reliability) -> float:
     """A label as the probability that it is right: an answer "first" of an annotator right
     with probability p trains towards P(first) = p (p below 1/2 counts as 1/2: no
-    information, never flipped); equal answers stay 1/2."""
-    trust = min(max(reliability, 0.5), 1.0)
+    information, never flipped); equal answers stay 1/2, and so does every answer of an
+    annotator nothing is known of yet."""
+    if reliability.answers == 0:
+        return label
+    trust = min(max(reliability.estimate, 0.5), 1.0)
     return 0.5 + (label - 0.5) * (2.0 * trust - 1.0)
 
 

@@ -44,4 +44,7 @@ def learn_from_session(
     if request.session == 0:
         reset_critic()
     quality = reward.quality(run_seed, c.sessions)
-    return metrics.feedback_row(c, outcome.stats, result, len(labels), quality, request.episodes)
+    row = metrics.feedback_row(c, outcome.stats, result, len(labels), quality, request.episodes)
+    if answered.record.crowd is not None:
+        row.update(metrics.crowd_fields(answered.record.crowd, labels.reliability()))
+    return row

@@ -7,6 +7,8 @@ from typing import Any
 
 from seqrank.config import TrainConfig
 from seqrank.feedback.closure import AugmentationStats
+from seqrank.feedback.crowd_record import CrowdRecord
+from seqrank.feedback.reliability import Reliability
 from seqrank.reward.model import RewardTrainResult
 from seqrank.training.eval_worker import score_row
 from seqrank.training.evaluation import PolicyScore
@@ -62,6 +64,26 @@ def feedback_row(
         **quality,
         **window,
     }
+
+
+def crowd_fields(crowd: CrowdRecord, reliability: dict[str, Reliability]) -> dict[str, Any]:
+    """A crowd's session: its length with its people side by side, their time added up,
+    the second opinions, and each annotator's reliability so far (`crowd/NAME/...`)."""
+    fields: dict[str, Any] = {
+        "crowd_seconds": crowd.seconds,
+        "crowd_person_seconds": crowd.person_seconds,
+        "second_opinions": len(crowd.second_opinions),
+    }
+    for name, r in reliability.items():
+        fields.update({
+            f"crowd/{name}/reliability": r.estimate,
+            f"crowd/{name}/low": r.low,
+            f"crowd/{name}/high": r.high,
+            f"crowd/{name}/answers": r.answers,
+            f"crowd/{name}/agreement": r.agreement,
+            f"crowd/{name}/flagged": r.flagged,
+        })  # fmt: skip
+    return fields
 
 
 def train_row(
