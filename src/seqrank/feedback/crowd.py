@@ -23,7 +23,13 @@ import numpy as np
 
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
-from seqrank.feedback.schemes import Ask, SessionRecord, get_scheme, segments_needed
+from seqrank.feedback.schemes import (
+    Ask,
+    SessionRecord,
+    get_scheme,
+    handover_reserve,
+    segments_needed,
+)
 from seqrank.feedback.session import SessionRequest
 from seqrank.feedback.teachers import CrowdMember, ScriptedTeacher
 from seqrank.types import Answer, AnsweredQuestion, Question
@@ -37,27 +43,33 @@ class Chain:
     budget: int
 
 
-def share_session(scheme: str, questions: int, pool_size: int, people: int) -> list[Chain]:
-    """The session's chains: questions split evenly (the first chains take the remainder;
-    no chain for a person beyond the questions), the pool cut into contiguous slices in
-    proportion to what each chain needs. ValueError when the pool is too small."""
+def share_session(
+    scheme: str, questions: int, pool_size: int, people: int
+) -> tuple[list[Chain], tuple[int, ...]]:
+    """The session's chains and its hand-over reserve: questions split evenly (the first
+    chains take the remainder; no chain for a person beyond the questions), the pool cut
+    into contiguous slices in proportion to what each chain needs, its last
+    `handover_reserve` segments kept aside. ValueError when the pool is too small."""
     if people < 1:
         raise ValueError(f"a session needs at least one person to answer, got {people}")
     chains = min(people, questions)
     budgets = [questions // chains + (1 if k < questions % chains else 0) for k in range(chains)]
     needs = [segments_needed(scheme, b) for b in budgets]
-    if pool_size < sum(needs):
+    reserve = handover_reserve(scheme, questions, chains)
+    if pool_size < sum(needs) + reserve:
         raise ValueError(
-            f"{scheme}: {chains} chains of {budgets} questions need {sum(needs)} segments, "
-            f"but the pool has {pool_size}"
+            f"{scheme}: {chains} chains of {budgets} questions need {sum(needs) + reserve} "
+            f"segments, but the pool has {pool_size}"
         )
-    scale = pool_size // sum(needs)
+    usable = pool_size - reserve
+    scale = usable // sum(needs)
     sizes = [need * scale for need in needs]
-    sizes[-1] += pool_size - sum(sizes)
+    sizes[-1] += usable - sum(sizes)
     starts = np.cumsum([0, *sizes])
-    return [
+    shares = [
         Chain(tuple(range(int(starts[k]), int(starts[k + 1]))), budgets[k]) for k in range(chains)
     ]
+    return shares, tuple(range(usable, pool_size))
 
 
 def run_chain(
@@ -187,7 +199,7 @@ class CrowdSource:
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         rewards = request.segments.rewards
         teachers = [ScriptedTeacher(m.teacher).with_margin(request.margin) for m in self.members]
-        chains = share_session(request.scheme, request.questions, len(rewards), len(teachers))
+        chains, _ = share_session(request.scheme, request.questions, len(rewards), len(teachers))
         rngs = chain_rngs(request, len(chains))
         answers = dict.fromkeys((m.name for m in self.members), 0)
 

@@ -252,9 +252,18 @@ def get_scheme(name: str) -> Scheme:
 
 def segments_needed(scheme: str, budget: int, chains: int = 1) -> int:
     """How many distinct segments a session of `budget` questions may draw, asked as
-    `chains` chains of its scheme side by side (a crowd's session, one chain a person)."""
-    has_defender = scheme_has_defender(scheme)
-    return budget + min(chains, budget) if has_defender else 2 * budget
+    `chains` chains of its scheme side by side (a crowd's session, one chain a person).
+    Several chains keep `handover_reserve` segments more."""
+    if not scheme_has_defender(scheme):
+        return 2 * budget
+    return budget + min(chains, budget) + handover_reserve(scheme, budget, chains)
+
+
+def handover_reserve(scheme: str, budget: int, chains: int) -> int:
+    """Segments a crowd's session keeps aside so that a chain handed over to another
+    person (who starts it afresh from a new first segment) has one more: one a chain."""
+    used = min(chains, budget)
+    return used if used > 1 and scheme_has_defender(scheme) else 0
 
 
 def _check_pool(scheme: str, pool_size: int, budget: int) -> None:

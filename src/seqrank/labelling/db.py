@@ -12,6 +12,7 @@ queries return are in `seqrank.labelling.db_records`.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
 import threading
@@ -88,6 +89,17 @@ class LabelDB:
     def _rows(self, sql: str, *params: Any) -> list[sqlite3.Row]:
         with self._lock:
             return list(self._conn.execute(sql, params))
+
+    # for the tables of other modules (`seqrank.labelling.crowd_db`), on this lock
+    def transaction(self) -> contextlib.AbstractContextManager[sqlite3.Connection]:
+        return self._transaction()
+
+    def rows(self, sql: str, *params: Any) -> list[sqlite3.Row]:
+        return self._rows(sql, *params)
+
+    def add_tables(self, schema: str) -> None:
+        with self._lock:
+            self._conn.executescript(schema)
 
     # ---- meta --------------------------------------------------------------------
     def get_meta(self, key: str) -> str | None:

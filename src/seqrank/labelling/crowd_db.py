@@ -1,0 +1,270 @@
+"""The crowd's tables in the labelling database: annotators, chains, and who is asked what.
+
+A crowd session's questions are the `questions` table's rows as for one person; beside
+them, `crowd_questions` says whom each is assigned to, which chain it belongs to (a second
+opinion's chain is -1) and whether it was withdrawn (handed over to somebody else), and
+`crowd_chains` keeps each chain's share of the session (its questions, its slice of the
+pool, its owner, the chain it continues). A question's index in its session is
+`chain * CHAIN_STRIDE + k` for the k-th question of a chain and `-(index + 1)` for the
+second opinion on the question of that index, so a session replayed after a kill finds
+every stored row again. Every change is one transaction of `LabelDB`, committed before the
+caller hears back, as everything else there.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from dataclasses import dataclass
+
+from seqrank.labelling.db import (
+    AnswerConflict,
+    LabelDB,
+    NotAsked,
+    StoredAnswer,
+    StoredQuestion,
+    choice_to_answer,
+)
+from seqrank.labelling.db_records import answer_from_row, question_from_row
+
+CHAIN_STRIDE = 100_000  # questions a chain may ask in one session
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS crowd_annotators (
+    name TEXT PRIMARY KEY, token TEXT NOT NULL, position INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS crowd_chains (
+    run TEXT NOT NULL, session INTEGER NOT NULL, chain INTEGER NOT NULL, parent INTEGER,
+    budget INTEGER NOT NULL, pool TEXT NOT NULL, owner TEXT,
+    PRIMARY KEY (run, session, chain));
+CREATE TABLE IF NOT EXISTS crowd_questions (
+    question_id INTEGER PRIMARY KEY REFERENCES questions (id), run TEXT NOT NULL,
+    session INTEGER NOT NULL, chain INTEGER NOT NULL, annotator TEXT, assigned_at REAL,
+    excluded TEXT, withdrawn_at REAL);
+"""
+UNANSWERED = (
+    "SELECT q.*, c.chain, c.annotator, c.assigned_at, c.excluded FROM crowd_questions c "
+    "JOIN questions q ON q.id = c.question_id LEFT JOIN answers a ON a.question_id = q.id "
+    "WHERE a.question_id IS NULL AND c.withdrawn_at IS NULL"
+)
+
+
+@dataclass(frozen=True)
+class ChainRow:
+    run: str
+    session: int
+    chain: int
+    parent: int | None
+    budget: int
+    pool: tuple[int, ...]  # pool ids
+    owner: str | None
+
+
+@dataclass(frozen=True)
+class Assignment:
+    question: StoredQuestion
+    chain: int  # -1: a second opinion
+    annotator: str | None
+    assigned_at: float | None
+    withdrawn: bool
+
+
+class CrowdTables:
+    """The crowd's reads and writes, on one `LabelDB` (its lock and transactions)."""
+
+    def __init__(self, db: LabelDB):
+        self.db = db
+        db.add_tables(SCHEMA)
+
+    # ---- annotators --------------------------------------------------------------
+    def annotators(self) -> dict[str, str]:
+        """name -> token, in the order they were first given."""
+        rows = self.db.rows("SELECT name, token FROM crowd_annotators ORDER BY position")
+        return {r["name"]: r["token"] for r in rows}
+
+    def add_annotators(self, tokens: dict[str, str]) -> None:
+        """Store new annotators with their tokens; a stored one keeps its token."""
+        with self.db.transaction() as conn:
+            known = conn.execute("SELECT COUNT(*) FROM crowd_annotators").fetchone()[0]
+            for offset, (name, token) in enumerate(tokens.items()):
+                conn.execute(
+                    "INSERT OR IGNORE INTO crowd_annotators VALUES (?, ?, ?)",
+                    (name, token, known + offset),
+                )
+
+    # ---- chains ------------------------------------------------------------------
+    def chains(self, run: str, session: int) -> list[ChainRow]:
+        rows = self.db.rows(
+            "SELECT * FROM crowd_chains WHERE run = ? AND session = ? ORDER BY chain", run, session
+        )
+        return [_chain_from_row(r) for r in rows]
+
+    def add_chain(self, chain: ChainRow) -> ChainRow:
+        """Store a chain (kept as it was if stored already); returns the stored one."""
+        with self.db.transaction() as conn:
+            conn.execute(
+                "INSERT OR IGNORE INTO crowd_chains VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (chain.run, chain.session, chain.chain, chain.parent, chain.budget,
+                 json.dumps(list(chain.pool)), chain.owner),
+            )  # fmt: skip
+            row = conn.execute(
+                "SELECT * FROM crowd_chains WHERE run = ? AND session = ? AND chain = ?",
+                (chain.run, chain.session, chain.chain),
+            ).fetchone()
+        return _chain_from_row(row)
+
+    def chain_owner(self, run: str, session: int, chain: int) -> str | None:
+        rows = self.db.rows(
+            "SELECT owner FROM crowd_chains WHERE run = ? AND session = ? AND chain = ?",
+            run, session, chain,
+        )  # fmt: skip
+        return rows[0]["owner"] if rows else None
+
+    # ---- questions ---------------------------------------------------------------
+    def pose(
+        self, question: StoredQuestion, chain: int, annotator: str | None, excluded: str | None
+    ) -> Assignment:
+        """Put a stored question to `annotator` (None: whoever claims it first); a question
+        posed already keeps its assignment."""
+        with self.db.transaction() as conn:
+            conn.execute(
+                "INSERT OR IGNORE INTO crowd_questions VALUES (?, ?, ?, ?, ?, ?, ?, NULL)",
+                (question.id, question.run, question.session, chain, annotator,
+                 None if annotator is None else time.time(), excluded),
+            )  # fmt: skip
+        found = self.assignment(question.id)
+        assert found is not None
+        return found
+
+    def assignment(self, question_id: int) -> Assignment | None:
+        rows = self.db.rows("SELECT * FROM crowd_questions WHERE question_id = ?", question_id)
+        if not rows:
+            return None
+        question = self.db.question(question_id)
+        assert question is not None
+        r = rows[0]
+        return Assignment(
+            question, r["chain"], r["annotator"], r["assigned_at"], r["withdrawn_at"] is not None
+        )
+
+    def claim(self, annotator: str) -> StoredQuestion | None:
+        """The question `annotator` should answer now: their own oldest unanswered one,
+        else the oldest nobody holds of a chain (the chain becomes theirs), else the
+        oldest second opinion they may give; None when there is nothing for them."""
+        with self.db.transaction() as conn:
+            own = conn.execute(
+                f"{UNANSWERED} AND c.annotator = ? ORDER BY q.id LIMIT 1", (annotator,)
+            ).fetchone()
+            if own is not None:
+                return question_from_row(own)
+            free = conn.execute(
+                f"{UNANSWERED} AND c.annotator IS NULL AND (c.excluded IS NULL OR c.excluded "
+                "!= ?) ORDER BY c.chain < 0, q.id LIMIT 1",
+                (annotator,),
+            ).fetchone()
+            if free is None:
+                return None
+            conn.execute(
+                "UPDATE crowd_questions SET annotator = ?, assigned_at = ? WHERE question_id = ?",
+                (annotator, time.time(), free["id"]),
+            )
+            if free["chain"] >= 0:
+                conn.execute(
+                    "UPDATE crowd_chains SET owner = ? WHERE run = ? AND session = ? AND chain = ?",
+                    (annotator, free["run"], free["session"], free["chain"]),
+                )
+            return question_from_row(free)
+
+    def record_answer(
+        self, question: StoredQuestion, choice: str, latency_ms: float, annotator: str
+    ) -> tuple[StoredAnswer, bool]:
+        """Commit `annotator`'s answer; returns it and whether it was stored already.
+
+        Raises AnswerConflict for a different stored answer, NotAsked when the question is
+        not `annotator`'s to answer (another's, or handed over): checked in the same
+        transaction as the write, so a hand-over and an answer never both happen."""
+        answer = choice_to_answer(choice, question)
+        with self.db.transaction() as conn:
+            row = conn.execute(
+                "SELECT * FROM answers WHERE question_id = ?", (question.id,)
+            ).fetchone()
+            if row is not None:
+                stored = answer_from_row(row)
+                if stored.choice != choice or stored.annotator != annotator:
+                    raise AnswerConflict(
+                        f"question {question.id} was already answered; the new answer was "
+                        "not stored"
+                    )
+                return stored, True
+            crowd = conn.execute(
+                "SELECT annotator, withdrawn_at FROM crowd_questions WHERE question_id = ?",
+                (question.id,),
+            ).fetchone()
+            if crowd is None or crowd["annotator"] != annotator:
+                raise NotAsked(f"question {question.id} is not yours to answer; reload the page")
+            if crowd["withdrawn_at"] is not None:
+                raise NotAsked(
+                    f"question {question.id} was handed to another annotator after a long "
+                    "wait; the page moves on to your next question"
+                )
+            now = time.time()
+            conn.execute(
+                "INSERT INTO answers VALUES (?, ?, ?, ?, ?, ?)",
+                (question.id, choice, answer, latency_ms, annotator, now),
+            )
+        return StoredAnswer(question.id, choice, answer, latency_ms, annotator, now), False
+
+    def withdraw_if_unanswered(self, question_id: int) -> bool:
+        """Hand a question back (its chain is cut): True unless it was answered first."""
+        with self.db.transaction() as conn:
+            answered = conn.execute(
+                "SELECT 1 FROM answers WHERE question_id = ?", (question_id,)
+            ).fetchone()
+            if answered is not None:
+                return False
+            conn.execute(
+                "UPDATE crowd_questions SET withdrawn_at = ? WHERE question_id = ? "
+                "AND withdrawn_at IS NULL",
+                (time.time(), question_id),
+            )
+            return True
+
+    def withdrawn(self, question_id: int) -> bool:
+        found = self.assignment(question_id)
+        return found is not None and found.withdrawn
+
+    def unanswered(self, run: str, session: int) -> list[Assignment]:
+        rows = self.db.rows(
+            f"{UNANSWERED} AND q.run = ? AND q.session = ? ORDER BY q.id", run, session
+        )
+        return [a for a in (self.assignment(r["id"]) for r in rows) if a is not None]
+
+    def answered_by(self) -> list[tuple[StoredQuestion, str, int, str, float]]:
+        """Every answered crowd question: (question, annotator, chain, answer, latency)."""
+        rows = self.db.rows(
+            "SELECT q.*, c.chain, a.annotator AS who, a.answer, a.latency_ms "
+            "FROM crowd_questions c JOIN questions q ON q.id = c.question_id "
+            "JOIN answers a ON a.question_id = q.id ORDER BY a.answered_at"
+        )
+        return [
+            (question_from_row(r), r["who"], r["chain"], r["answer"], r["latency_ms"]) for r in rows
+        ]
+
+    def withdrawn_count(self) -> dict[str, int]:
+        """Questions handed over, by the annotator they were taken from."""
+        rows = self.db.rows(
+            "SELECT annotator, COUNT(*) AS n FROM crowd_questions WHERE withdrawn_at IS NOT "
+            "NULL AND annotator IS NOT NULL GROUP BY annotator"
+        )
+        return {r["annotator"]: int(r["n"]) for r in rows}
+
+
+def _chain_from_row(row: sqlite3.Row) -> ChainRow:
+    return ChainRow(
+        row["run"],
+        row["session"],
+        row["chain"],
+        row["parent"],
+        row["budget"],
+        tuple(json.loads(row["pool"])),
+        row["owner"],
+    )
