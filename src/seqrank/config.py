@@ -114,6 +114,7 @@ class TrainConfig:
     # answers also asked of a second person, and how the labels count in reward training
     overlap: float = 0.1
     crowd_weighting: CrowdWeighting = CrowdWeighting.RELIABILITY
+    annotators: str = ""  # a team at the labelling page (`label online`): name,name,...
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay
     # buffer and episodes to start from, and what the sessions' clips show
@@ -162,6 +163,14 @@ class TrainConfig:
         return parse_teacher(self.teacher)
 
     @property
+    def team(self) -> tuple[str, ...]:
+        """Who shares the sessions out: a simulated crowd's members, or the annotators of
+        a team at the labelling page; () for one teacher."""
+        if self.annotators:
+            return tuple(name.strip() for name in self.annotators.split(","))
+        return tuple(m.name for m in self.teacher_spec.members)
+
+    @property
     def sessions(self) -> int:
         return math.ceil(self.max_feedback / self.reward_batch)
 
@@ -202,6 +211,7 @@ ASKING_ONLY = frozenset(
         "hybrid_episodes",
         "overlap",
         "crowd_weighting",
+        "annotators",
         "meta_update_frequency",
         "meta_loss_weight",
         "augment",

@@ -51,7 +51,16 @@ def check_qpa(config: TrainConfig) -> None:
 
 def check_crowd(config: TrainConfig) -> None:
     """The crowd's settings act on a crowd's answers only."""
-    if config.teacher_spec.kind == "crowd":
+    kind = config.teacher_spec.kind
+    if config.annotators:
+        if kind != "human":
+            raise SettingError(
+                f"{setting('annotators')} names a team at the labelling page; "
+                f"{setting('teacher')} '{config.teacher}' is scripted: use `seqrank label "
+                "online --annotators ...`, or a simulated crowd (crowd:oracle+noisy)"
+            )
+        check_annotator_names(config.annotators, setting("annotators"))
+    if kind == "crowd" or config.annotators:
         return
     crowd_only = [f for f in fields(config) if f.name in ("overlap", "crowd_weighting")]
     given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
@@ -61,6 +70,23 @@ def check_crowd(config: TrainConfig) -> None:
             f"{names} act on a crowd's answers; {setting('teacher')} '{config.teacher}' is "
             "one teacher: leave them out, or use a crowd (crowd:oracle+mistake+noisy)"
         )
+
+
+def check_annotator_names(names: str, option: str) -> tuple[str, ...]:
+    """A team's names, comma-separated: each letters, digits, - and _, once."""
+    team = tuple(name.strip() for name in names.split(","))
+    for name in team:
+        if not name or not name.replace("-", "").replace("_", "").isalnum() or len(name) > 40:
+            raise SettingError(
+                f"{option} {names!r}: {name!r} is not a name; use letters, digits, - and _ "
+                "(at most 40), comma-separated: alice,bob,carol"
+            )
+    repeated = sorted({name for name in team if team.count(name) > 1})
+    if repeated:
+        raise SettingError(
+            f"{option} {names!r}: {', '.join(repeated)} given twice; names are unique"
+        )
+    return team
 
 
 def check_learner(config: TrainConfig) -> None:

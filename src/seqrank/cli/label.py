@@ -21,6 +21,7 @@ from seqrank.cli.label_study import add_study, run_study
 from seqrank.cli.options import (
     Parser,
     add_run_options,
+    number_between,
     positive,
     problem_with_flags,
     seed_number,
@@ -88,6 +89,19 @@ def _add_offline(modes: Any) -> None:
     )
     offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
     offline.add_argument("--seed", type=seed_number, default=0)
+    offline.add_argument(
+        "--annotators",
+        default="",
+        metavar="NAMES",
+        help="a team sharing the sessions out, comma-separated (alice,bob): each gets an "
+        "address of their own, the operator a page of their own (/operator)",
+    )
+    offline.add_argument(
+        "--overlap",
+        type=number_between(0.0, 1.0),
+        default=0.1,
+        help="with --annotators: the share of answers also asked of a second annotator (0.1)",
+    )
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
     offline.set_defaults(setting_flags=setting_flags(offline))
     server_options(offline)
@@ -113,6 +127,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
 def _offline_options(args: argparse.Namespace) -> Any:
     """The offline session's settings, checked before anything is written."""
     from seqrank.config import resolve_config
+    from seqrank.config_rules import check_annotator_names
     from seqrank.envs import make_env
     from seqrank.labelling.app import OfflineOptions, check_task_name
     from seqrank.training.runs import RunDir
@@ -133,6 +148,7 @@ def _offline_options(args: argparse.Namespace) -> Any:
             f"--segment-length {length} is longer than an episode of {task} ({episode} steps); "
             f"accepted: 1 to {episode}"
         )
+    team = check_annotator_names(args.annotators, "--annotators") if args.annotators else ()
     return OfflineOptions(
         task,
         args.scheme,
@@ -143,6 +159,8 @@ def _offline_options(args: argparse.Namespace) -> Any:
         args.seed,
         args.policy_run,
         args.augment,
+        team,
+        args.overlap,
     )
 
 
@@ -167,6 +185,10 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
     try:
         check_offline_settings(directory, settings)
         hub = open_hub(directory, options.task, page_options(args))
+        if options.annotators:
+            from seqrank.labelling.crowd_source import open_team
+
+            open_team(hub, options.annotators, options.overlap, args.reassign_after)
         record_offline_settings(hub.db, settings)
         with stop_on_signals(hub.stop.set, say) as stop:
             server = serve(hub, args, say)
@@ -203,6 +225,10 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     def make(config: Any, run: RunDir) -> Any:
         holder["hub"] = hub = open_hub(run.path, config.task, page_options(args))
         try:
+            if config.team:
+                from seqrank.labelling.crowd_source import open_team
+
+                open_team(hub, config.team, config.overlap, args.reassign_after)
             return human_trainer(hub, "online", not args.no_wait, say)(config, run)
         except BaseException:
             if hub.renderer is not None:

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from seqrank.cli.options import frame_size, int_between, port_number
+from seqrank.cli.options import frame_size, int_between, number_between, port_number
 from seqrank.errors import UsageError
 from seqrank.labelling import CLIP_SIZE
 
@@ -53,6 +53,13 @@ def server_options(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--keep-serving", action="store_true", help="keep the page up after the last answer"
+    )
+    group.add_argument(
+        "--reassign-after",
+        type=number_between(1.0, 86_400.0),
+        default=60.0,
+        metavar="SECONDS",
+        help="a team (--annotators): a question unanswered this long is handed to the others (60)",
     )
 
 
@@ -102,6 +109,13 @@ def serve(hub: Any, args: argparse.Namespace, say: Any) -> Any:
 
     server = PageServer(hub, page_options(args))
     server.start()
+    if hub.crowd is not None:
+        from seqrank.labelling.crowd_source import team_addresses
+
+        base = server.remote_base or server.base
+        for who, address in team_addresses(hub, base):
+            say(f"{who}'s page: {address}")
+        return server
     say(f"labelling page: {server.url}")
     if server.remote_url is not None:
         say(f"from other machines: {server.remote_url}")
@@ -128,14 +142,14 @@ def finish(hub: Any, server: Any, directory: Path, args: argparse.Namespace, say
 
 def human_trainer(hub: Any, run_name: str, wait: bool, say: Any) -> Any:
     from seqrank.labelling.app import record_task, training_progress
-    from seqrank.labelling.human import HumanSource
+    from seqrank.labelling.crowd_source import page_source
     from seqrank.training.trainer import Trainer
 
     def build(config: Any, run: Any) -> Any:
         trainer = Trainer(
             config,
             run,
-            source=HumanSource(hub, run_name, config.seed),
+            source=page_source(hub, run_name, config.seed),
             wait_for_feedback=wait,
         )
         env = trainer.env

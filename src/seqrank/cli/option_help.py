@@ -48,6 +48,8 @@ MEANINGS = {
     "overlap": "a crowd's share of answers also asked of a second member, for agreement (0 to 1)",
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
     "is right) or none (answers as given)",
+    "annotators": "label online: a team at the page, comma-separated names (each gets an "
+    "address of their own)",
     "query_episodes": "QPA: cut new segments from the last N episodes only (0: all kept)",
     "hybrid_replay": "QPA: share of each agent batch from recent transitions while "
     "feedback is asked for (0: off)",

@@ -166,18 +166,29 @@ def is_local_address(name: str) -> bool:
     return True
 
 
+OPERATOR = "(operator)"  # who holds the main token when a team has tokens of its own
+
+
 @dataclass(frozen=True)
 class Access:
-    """What the guard accepts: the token (if any) and the names the server is reached by."""
+    """What the guard accepts: the token (if any) and the names the server is reached by.
+    A team's page (`--annotators`) also accepts each annotator's own token, and tells the
+    routes whose it was (`who`): the main token is then the operator's."""
 
     token: str | None
     names: frozenset[str]  # lower-case host names and addresses, without the port
     any_local_address: bool  # a wildcard bind: every address of this machine is served
     cookie: str  # the session cookie's name
+    annotator_tokens: tuple[tuple[str, str], ...] = ()  # (annotator, token)
 
     @classmethod
     def serving(
-        cls, host: str, port: int, token: str | None, extra_names: Iterable[str] = ()
+        cls,
+        host: str,
+        port: int,
+        token: str | None,
+        extra_names: Iterable[str] = (),
+        annotator_tokens: Iterable[tuple[str, str]] = (),
     ) -> Access:
         wildcard = is_wildcard(host)
         names = {n.lower().rstrip(".") for n in extra_names}
@@ -187,22 +198,32 @@ class Access:
             names |= LOOPBACK_NAMES
         if wildcard:
             names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
-        return cls(token, frozenset(names), wildcard, f"seqrank_session_{port}")
+        team = tuple(annotator_tokens)
+        return cls(token, frozenset(names), wildcard, f"seqrank_session_{port}", team)
 
     def serves(self, name: str) -> bool:
         return name in self.names or (self.any_local_address and is_local_address(name))
 
-    def session_value(self) -> str:
+    def session_value(self, token: str | None = None) -> str:
         """The cookie's value: derived from the token, so the cookie never holds the token."""
+        token = token if token is not None else self.token
+        assert token is not None
+        return hmac.new(token.encode(), b"seqrank page session", hashlib.sha256).hexdigest()
+
+    def holders(self) -> list[tuple[str | None, str]]:
+        """(who, token) of every token accepted: the main one's holder is None for one
+        person's page and the operator on a team's."""
         assert self.token is not None
-        return hmac.new(self.token.encode(), b"seqrank page session", hashlib.sha256).hexdigest()
+        main = OPERATOR if self.annotator_tokens else None
+        return [(main, self.token), *self.annotator_tokens]
 
 
 @dataclass(frozen=True)
 class Verdict:
     status: int = 0  # 0: allowed
     detail: str = ""
-    set_cookie: bool = False  # the page address carried the token: trade it for the cookie
+    set_cookie: str | None = None  # the address carried this token: trade it for the cookie
+    who: str | None = None  # on a team's page: the annotator (or OPERATOR) it belongs to
 
 
 def check_origin(method: str, headers: Headers, scheme: str = "http") -> str | None:
@@ -242,15 +263,17 @@ def check_request(access: Access, request: HTTPConnection, method: str = "GET") 
         return Verdict(403, refused)
     if access.token is None:
         return Verdict()
-    from_address = request.query_params.get("token") if request.scope["path"] == "/" else None
-    if from_address is not None and _same(from_address, access.token):
-        return Verdict(set_cookie=True)
+    pages = ("/", "/operator")
+    from_address = request.query_params.get("token") if request.scope["path"] in pages else None
     header = request.headers.get(TOKEN_HEADER)
-    if header is not None and _same(header, access.token):
-        return Verdict()
     cookie = request.cookies.get(access.cookie)
-    if cookie is not None and _same(cookie, access.session_value()):
-        return Verdict()
+    for who, token in access.holders():
+        if from_address is not None and _same(from_address, token):
+            return Verdict(set_cookie=token, who=who)
+        if header is not None and _same(header, token):
+            return Verdict(who=who)
+        if cookie is not None and _same(cookie, access.session_value(token)):
+            return Verdict(who=who)
     return Verdict(401, "missing or wrong access token: open the address the server printed")
 
 
@@ -275,8 +298,9 @@ class AccessGuard:
             return
         verdict = check_request(self.access, HTTPConnection(scope), scope["method"])
         extra = list(SECURITY_HEADERS)
-        if verdict.set_cookie:
-            extra.append((b"set-cookie", self._cookie_header()))
+        if verdict.set_cookie is not None:
+            extra.append((b"set-cookie", self._cookie_header(verdict.set_cookie)))
+        scope.setdefault("state", {})["who"] = verdict.who
 
         async def send_with_headers(message: Message) -> None:
             if message["type"] == "http.response.start":
@@ -297,12 +321,13 @@ class AccessGuard:
             raise RuntimeError(f"unsupported ASGI scope {loggable(str(scope['type']), 40)}")
         verdict = check_request(self.access, HTTPConnection(scope))
         if not verdict.status:
+            scope.setdefault("state", {})["who"] = verdict.who
             await self.app(scope, receive, send)
             return
         log_refusal("WEBSOCKET", scope["path"], verdict.status, verdict.detail)
         await receive()  # the handshake's websocket.connect
         await send({"type": "websocket.close", "code": 1008})  # policy violation
 
-    def _cookie_header(self) -> bytes:
-        value = self.access.session_value()
+    def _cookie_header(self, token: str) -> bytes:
+        value = self.access.session_value(token)
         return f"{self.access.cookie}={value}; Path=/; HttpOnly; SameSite=Strict".encode()

@@ -33,8 +33,9 @@ from seqrank.feedback.session import SessionRequest
 from seqrank.labelling import CLIP_SIZE
 from seqrank.labelling.access import Access, is_wildcard, page_token
 from seqrank.labelling.clips import ClipRenderer
+from seqrank.labelling.crowd_source import page_source
 from seqrank.labelling.db import LabelDB, from_blob
-from seqrank.labelling.human import Hub, HumanSource, PageSettings, Stopped
+from seqrank.labelling.human import Hub, PageSettings, Stopped
 from seqrank.labelling.jsonl import export_file
 from seqrank.types import Answer
 
@@ -76,7 +77,8 @@ class PageServer:
             ) from None
         port = self._socket.getsockname()[1]
         token = hub.settings.token
-        access = Access.serving(options.host, port, token, options.allowed_hosts)
+        team = () if hub.crowd is None else tuple(hub.crowd.tokens.items())
+        access = Access.serving(options.host, port, token, options.allowed_hosts, team)
         app = create_app(hub, access)
         config = uvicorn.Config(app, log_level="warning", lifespan="off")
         self._server = uvicorn.Server(config)
@@ -87,8 +89,10 @@ class PageServer:
         wildcard = is_wildcard(options.host)
         host = ("::1" if ":" in options.host else "127.0.0.1") if wildcard else options.host
         host = f"[{host}]" if ":" in host else host
-        self.url = f"http://{host}:{port}/{query}"
-        self.remote_url = f"http://{socket.gethostname()}:{port}/{query}" if wildcard else None
+        self.base = f"http://{host}:{port}/"
+        self.remote_base = f"http://{socket.gethostname()}:{port}/" if wildcard else None
+        self.url = f"{self.base}{query}"
+        self.remote_url = None if self.remote_base is None else f"{self.remote_base}{query}"
         self.port = port
 
     def start(self) -> None:
@@ -165,6 +169,8 @@ class OfflineOptions:
     seed: int
     policy_run: Path | None  # a run directory whose saved policy acts; None: random actions
     augment: str = "full"  # checked: answers that would imply many pairs are asked again
+    annotators: tuple[str, ...] = ()  # a team sharing the sessions out (empty: one person)
+    overlap: float = 0.1  # a team's share of answers also asked of a second annotator
 
 
 def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
@@ -219,9 +225,10 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
     record_task(db, options.task, env.obs_dim, env.act_dim, options.segment_length)
     env.close()
     hub.sessions_total = options.sessions
-    source = HumanSource(hub, "offline", options.seed)
+    source = page_source(hub, "offline", options.seed)
     episodes: EpisodeStore | None = None
-    needed = segments_needed(options.scheme, options.questions)
+    chains = max(1, len(options.annotators))
+    needed = segments_needed(options.scheme, options.questions, chains)
     for session in range(options.sessions):
         stored = db.session_row("offline", session)
         if stored is not None and db.count("offline", session) >= stored["questions"]:
@@ -243,6 +250,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
             rng,
             0.0,
             recheck=_recheck(db, session) if options.augment == "checked" else None,
+            chains=chains,
         )
         say(f"session {session + 1}/{options.sessions}: {options.questions} questions")
         source.ask_session(request)
@@ -260,7 +268,7 @@ def training_progress(
         text = (
             f"step {step:,} of {config.steps:,}; eval return {'-' if ret is None else f'{ret:.1f}'}"
         )
-        if hub.phase != "asking" or hub.db.pending_question() is None:
+        if hub.phase != "asking" or (hub.crowd is None and hub.db.pending_question() is None):
             hub.set_phase("training", f"the agent is training: {text}")
         if step % config.eval_every == 0:
             say(f"{text}; asked {live['asked']}, inferred {live['inferred']}")

@@ -213,6 +213,18 @@ class CrowdTables:
             )
         return StoredAnswer(question.id, choice, answer, latency_ms, annotator, now), False
 
+    def progress(self, question: StoredQuestion) -> tuple[int, int]:
+        """(number, of): the question's place in its chain (1-based) and the chain's
+        questions; a second opinion is (1, 1)."""
+        if question.index < 0:
+            return 1, 1
+        chain, k = divmod(question.index, CHAIN_STRIDE)
+        rows = self.db.rows(
+            "SELECT budget FROM crowd_chains WHERE run = ? AND session = ? AND chain = ?",
+            question.run, question.session, chain,
+        )  # fmt: skip
+        return k + 1, int(rows[0]["budget"]) if rows else k + 1
+
     def withdraw_if_unanswered(self, question_id: int) -> bool:
         """Hand a question back (its chain is cut): True unless it was answered first."""
         with self.db.transaction() as conn:

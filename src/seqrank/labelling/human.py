@@ -22,6 +22,7 @@ from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SessionRecord, get_scheme, scheme_has_defender
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.clips import ClipRenderer
+from seqrank.labelling.crowd_settings import CrowdSettings
 from seqrank.labelling.db import LabelDB
 from seqrank.types import Answer
 
@@ -56,6 +57,7 @@ class Hub:
     survey_run: str | None = None
     upcoming: list[int] = field(default_factory=list)  # the session's segments, to prefetch
     clip_source: str = "state"  # clips re-rendered from saved states, or recorded "frames"
+    crowd: CrowdSettings | None = None  # a team of annotators (`--annotators`)
 
     def set_phase(self, phase: str, message: str) -> None:
         self.phase, self.message = phase, message
@@ -79,7 +81,7 @@ class HumanSource:
         pass
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
-        row = self._stored_session(request)
+        row = stored_session(self.hub.db, self.run, self.seed, request)
         db = self.hub.db
         pool = db.pool(self.run, request.session)
         page_session = _PageSession(
@@ -108,32 +110,29 @@ class HumanSource:
         )
         return pool, record
 
-    def _stored_session(self, request: SessionRequest) -> sqlite3.Row:
-        """The session's stored row, storing the session and its pool first if it is new."""
-        db, run, session = self.hub.db, self.run, request.session
+
+def stored_session(db: LabelDB, run: str, run_seed: int, request: SessionRequest) -> sqlite3.Row:
+    """The session's stored row, storing the session and its pool first if it is new."""
+    session = request.session
+    row = db.session_row(run, session)
+    if row is None:
+        seed = _session_seed(run_seed, run, session)
+        side = "left" if np.random.default_rng(seed).random() < 0.5 else "right"
+        opinions = None if request.recheck is None else request.recheck.model_returns
+        if opinions is None:  # (a crowd's: its reliability estimate uses them)
+            opinions = request.model_returns
+        db.create_session(
+            run, session, request.scheme, request.questions, seed, side, request.segments,
+            model_returns=opinions,
+        )  # fmt: skip
         row = db.session_row(run, session)
-        if row is None:
-            seed = _session_seed(self.seed, run, session)
-            side = "left" if np.random.default_rng(seed).random() < 0.5 else "right"
-            opinions = None if request.recheck is None else request.recheck.model_returns
-            db.create_session(
-                run,
-                session,
-                request.scheme,
-                request.questions,
-                seed,
-                side,
-                request.segments,
-                model_returns=opinions,
-            )
-            row = db.session_row(run, session)
-            assert row is not None
-        if row["scheme"] != request.scheme:
-            raise RuntimeError(
-                f"run {run!r} session {session} was stored with scheme {row['scheme']!r}, "
-                f"not {request.scheme!r}"
-            )
-        return row
+        assert row is not None
+    if row["scheme"] != request.scheme:
+        raise RuntimeError(
+            f"run {run!r} session {session} was stored with scheme {row['scheme']!r}, "
+            f"not {request.scheme!r}"
+        )
+    return row
 
 
 @dataclass

@@ -23,12 +23,12 @@ import time
 from importlib import resources
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, FastAPI, HTTPException, Path
+from fastapi import APIRouter, FastAPI, HTTPException, Path, Request
 from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from seqrank.labelling.access import Access, AccessGuard
+from seqrank.labelling.access import OPERATOR, Access, AccessGuard
 from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
@@ -89,18 +89,26 @@ def _question_routes(hub: Hub) -> APIRouter:
     db, settings = hub.db, hub.settings
 
     @router.get("/api/state")
-    def state() -> dict[str, object]:
-        return page_state(hub)
+    def state(request: Request) -> dict[str, object]:
+        return page_state(hub, request.state.who)
 
     @router.post("/api/answer")
-    def answer(body: AnswerIn) -> dict[str, object]:
+    def answer(body: AnswerIn, request: Request) -> dict[str, object]:
+        who = request.state.who
         question = db.question(body.question_id)
         if question is None:
             raise HTTPException(404, f"unknown question {body.question_id}")
         try:
-            stored, duplicate = db.record_answer(
-                question, body.choice, body.latency_ms, settings.annotator
-            )
+            if hub.crowd is None:
+                stored, duplicate = db.record_answer(
+                    question, body.choice, body.latency_ms, settings.annotator
+                )
+            elif who == OPERATOR:
+                raise HTTPException(403, "the operator's token answers no questions")
+            else:
+                stored, duplicate = hub.crowd.tables.record_answer(
+                    question, body.choice, body.latency_ms, who
+                )
         except (AnswerConflict, NotAsked) as conflict:
             raise HTTPException(409, str(conflict)) from None
         return {
@@ -108,42 +116,55 @@ def _question_routes(hub: Hub) -> APIRouter:
             "duplicate": duplicate,
             "question_id": question.id,
             "answer": stored.answer,
-            "next": _next_state(hub, question.id),
+            "next": _next_state(hub, question.id, who),
         }
 
     return router
 
 
-def page_state(hub: Hub) -> dict[str, object]:
-    """What the page shows now: a question, a survey, waiting or done."""
+def page_state(hub: Hub, who: str | None = None) -> dict[str, object]:
+    """What the page shows now: a question, a survey, waiting or done; on a team's page,
+    what the annotator `who` should do now."""
     common: dict[str, object] = {
         "run": hub.run,
         "scheme": hub.scheme,
-        "annotator": hub.settings.annotator,
+        "annotator": hub.settings.annotator if who is None else who,
         "countdown_s": hub.settings.countdown_s,
         "sessions": hub.sessions_total,
         "message": hub.message,
         "clip_source": hub.clip_source,
         "playback": hub.settings.playback,
     }
-    question = hub.db.pending_question()
+    question = _question_for(hub, who)
     if question is not None:
         return {**common, **_question_state(hub, question), "prefetch": _prefetch(hub, question)}
+    if who == OPERATOR:
+        return {**common, "status": "waiting", "message": "this is the operator's address: "
+                "the team's work is on /operator"}  # fmt: skip
     if hub.phase == "survey" and hub.survey_run is not None:
         return {**common, "status": "survey", "survey_run": hub.survey_run}
     status = "done" if hub.phase == "done" else "waiting"
     return {**common, "status": status}
 
 
-def _next_state(hub: Hub, answered: int) -> dict[str, object]:
+def _question_for(hub: Hub, who: str | None) -> StoredQuestion | None:
+    """The question to show: the one being asked, or on a team's page the annotator's."""
+    if hub.crowd is None:
+        return hub.db.pending_question()
+    if who is None or who == OPERATOR:
+        return None
+    return hub.crowd.tables.claim(who)
+
+
+def _next_state(hub: Hub, answered: int, who: str | None = None) -> dict[str, object]:
     """The state after an answer, once the next question is posed (it usually is within
     milliseconds): the page shows it without another request. At most NEXT_WAIT_S."""
     deadline = time.monotonic() + NEXT_WAIT_S
     while True:
-        pending = hub.db.pending_question()
+        pending = _question_for(hub, who)
         moved_on = pending is not None and pending.id != answered
         if moved_on or hub.phase in ("survey", "done") or time.monotonic() > deadline:
-            return page_state(hub)
+            return page_state(hub, who)
         time.sleep(0.005)
 
 
@@ -163,6 +184,9 @@ def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:
     session = hub.db.session_row(question.run, question.session)
     scheme = session["scheme"] if session is not None else hub.scheme
     questions = session["questions"] if session is not None else 0
+    index = question.index + 1
+    if hub.crowd is not None:  # a chain's k-th question, or a second opinion (index < 0)
+        index, questions = hub.crowd.tables.progress(question)
     return {
         "status": "question",
         "run": question.run,
@@ -170,7 +194,7 @@ def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:
         "question": {
             "id": question.id,
             "session": question.session + 1,
-            "index": question.index + 1,
+            "index": index,
             "questions": questions,
             "left": _side(question, question.left),
             "right": _side(question, question.right),

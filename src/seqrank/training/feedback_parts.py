@@ -29,7 +29,7 @@ def session_plan(config: TrainConfig) -> SessionPlan:
         config.segment_length,
         recheck=config.recheck,
         query_episodes=config.query_episodes,
-        crowd=len(config.teacher_spec.members),
+        crowd=len(config.team),
     )
 
 
