@@ -270,6 +270,8 @@ def training_progress(
         )
         if hub.phase != "asking" or (hub.crowd is None and hub.db.pending_question() is None):
             hub.set_phase("training", f"the agent is training: {text}")
+        if step % config.eval_every == 0 and ret is not None:
+            hub.curve.append((step, float(ret)))
         if step % config.eval_every == 0:
             say(f"{text}; asked {live['asked']}, inferred {live['inferred']}")
 

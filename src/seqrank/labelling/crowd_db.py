@@ -48,6 +48,10 @@ UNANSWERED = (
 )
 
 
+class NotYours(Exception):
+    """The question is another annotator's to answer."""
+
+
 @dataclass(frozen=True)
 class ChainRow:
     run: str
@@ -179,9 +183,9 @@ class CrowdTables:
     ) -> tuple[StoredAnswer, bool]:
         """Commit `annotator`'s answer; returns it and whether it was stored already.
 
-        Raises AnswerConflict for a different stored answer, NotAsked when the question is
-        not `annotator`'s to answer (another's, or handed over): checked in the same
-        transaction as the write, so a hand-over and an answer never both happen."""
+        Raises AnswerConflict for a different stored answer, NotYours for another's
+        question and NotAsked for one handed over: checked in the same transaction as the
+        write, so a hand-over and an answer never both happen."""
         answer = choice_to_answer(choice, question)
         with self.db.transaction() as conn:
             row = conn.execute(
@@ -200,7 +204,9 @@ class CrowdTables:
                 (question.id,),
             ).fetchone()
             if crowd is None or crowd["annotator"] != annotator:
-                raise NotAsked(f"question {question.id} is not yours to answer; reload the page")
+                raise NotYours(
+                    f"question {question.id} is another annotator's: each answers their own"
+                )
             if crowd["withdrawn_at"] is not None:
                 raise NotAsked(
                     f"question {question.id} was handed to another annotator after a long "

@@ -58,6 +58,7 @@ class Hub:
     upcoming: list[int] = field(default_factory=list)  # the session's segments, to prefetch
     clip_source: str = "state"  # clips re-rendered from saved states, or recorded "frames"
     crowd: CrowdSettings | None = None  # a team of annotators (`--annotators`)
+    curve: list[tuple[int, float]] = field(default_factory=list)  # (step, eval return)
 
     def set_phase(self, phase: str, message: str) -> None:
         self.phase, self.message = phase, message

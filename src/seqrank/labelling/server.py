@@ -29,6 +29,7 @@ from fastapi.staticfiles import StaticFiles
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from seqrank.labelling.access import OPERATOR, Access, AccessGuard
+from seqrank.labelling.crowd_db import NotYours
 from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
@@ -68,9 +69,7 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
     add_error_handlers(app)
     app.add_middleware(BodyRules)
     # added last, so it runs first: nothing is read from a request the guard turns away
-    app.add_middleware(
-        AccessGuard, access=access or Access.serving("127.0.0.1", 0, hub.settings.token)
-    )
+    app.add_middleware(AccessGuard, access=access or _loopback_access(hub))
 
     @app.get("/", response_class=HTMLResponse)
     def index() -> str:
@@ -78,10 +77,17 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
     app.include_router(_question_routes(hub))
+    if hub.crowd is not None:
+        app.include_router(_operator_routes(hub))
     app.include_router(_clip_routes(hub))
     app.include_router(_survey_routes(hub))
     app.include_router(_export_routes(hub.db))
     return app
+
+
+def _loopback_access(hub: Hub) -> Access:
+    team = () if hub.crowd is None else tuple(hub.crowd.tokens.items())
+    return Access.serving("127.0.0.1", 0, hub.settings.token, annotator_tokens=team)
 
 
 def _question_routes(hub: Hub) -> APIRouter:
@@ -111,6 +117,8 @@ def _question_routes(hub: Hub) -> APIRouter:
                 )
         except (AnswerConflict, NotAsked) as conflict:
             raise HTTPException(409, str(conflict)) from None
+        except NotYours as refused:
+            raise HTTPException(403, str(refused)) from None
         return {
             "accepted": True,
             "duplicate": duplicate,
@@ -207,6 +215,29 @@ def _side(question: StoredQuestion, segment: int) -> dict[str, object]:
     if question.defender is not None:
         role = "defender" if segment == question.defender else "challenger"
     return {"segment": segment, "clip": f"/api/clips/{segment}.mp4", "role": role}
+
+
+def _operator_routes(hub: Hub) -> APIRouter:
+    """A team's operator page, for the main token only (annotators' tokens cannot)."""
+    router = APIRouter()
+
+    def operator_only(request: Request) -> None:
+        if request.state.who != OPERATOR:
+            raise HTTPException(403, "the operator page needs the operator's token")
+
+    @router.get("/operator", response_class=HTMLResponse)
+    def operator_page(request: Request) -> str:
+        operator_only(request)
+        return (STATIC / "operator.html").read_text()
+
+    @router.get("/api/operator")
+    def operator_state(request: Request) -> dict[str, object]:
+        operator_only(request)
+        from seqrank.labelling.crowd_report import operator_view
+
+        return operator_view(hub, str(request.base_url))
+
+    return router
 
 
 def _clip_routes(hub: Hub) -> APIRouter:

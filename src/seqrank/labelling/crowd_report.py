@@ -1,0 +1,156 @@
+"""What the operator page shows of a team: per annotator their answers, pace, time-outs,
+latency, hand-overs, agreement on overlaps (Cohen's kappa) and reliability; the session's
+chains; the run's evaluation curve. All of it read from the labelling database, so the
+page shows what is stored, whatever the training process is doing."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, defaultdict
+from statistics import median
+from typing import Any
+
+from seqrank.feedback.reliability import MODEL, Reliability, estimate_reliability, evidence_rows
+from seqrank.labelling.human import Hub
+
+ANSWERS_SQL = (
+    "SELECT q.id, q.run, q.session, q.idx, q.first, q.second, c.chain, a.choice, a.answer, "
+    "a.annotator, a.latency_ms, a.answered_at FROM crowd_questions c "
+    "JOIN questions q ON q.id = c.question_id JOIN answers a ON a.question_id = q.id "
+    "ORDER BY a.answered_at"
+)
+
+
+def operator_view(hub: Hub, base: str) -> dict[str, Any]:
+    """The operator page's data; `base`: the server's address, for the team's links."""
+    assert hub.crowd is not None
+    rows = hub.db.rows(ANSWERS_SQL)
+    reliability = _reliability(hub, rows)
+    kappas = _kappas(rows)
+    handed = hub.crowd.tables.withdrawn_count()
+    people = []
+    for name, token in hub.crowd.tokens.items():
+        mine = [r for r in rows if r["annotator"] == name]
+        people.append(
+            {
+                "name": name,
+                "address": f"{base}?token={token}",
+                **_pace(mine),
+                "handed_over": handed.get(name, 0),
+                "kappa": kappas.get(name),
+                **_reliability_fields(reliability.get(name)),
+            }
+        )
+    model = reliability.get(MODEL)
+    return {
+        "phase": hub.phase,
+        "message": hub.message,
+        "run": hub.run,
+        "scheme": hub.scheme,
+        "sessions": hub.sessions_total,
+        "annotators": people,
+        "model_reliability": None if model is None else _reliability_fields(model),
+        "chains": _chains(hub),
+        "curve": [{"step": step, "eval_return": value} for step, value in hub.curve],
+        "overlap": hub.crowd.overlap,
+        "reassign_after_s": hub.crowd.reassign_after,
+    }
+
+
+def _pace(rows: list[Any]) -> dict[str, Any]:
+    """Answers, answers per minute (over the span of their answers), time-outs and the
+    median latency."""
+    times = [r["answered_at"] for r in rows]
+    span = (max(times) - min(times)) / 60.0 if len(times) > 1 else 0.0
+    return {
+        "answers": len(rows),
+        "per_minute": len(rows) / span if span > 0 else None,
+        "timeouts": sum(r["choice"] == "timeout" for r in rows),
+        "median_latency_ms": median(r["latency_ms"] for r in rows) if rows else None,
+    }
+
+
+def _reliability(hub: Hub, rows: list[Any]) -> dict[str, Reliability]:
+    """Every annotator's reliability from the stored answers, the model's opinions stored
+    with each session as the model's vote."""
+    pool_of: dict[tuple[str, int], dict[int, int]] = {}
+    evidence = []
+    for r in rows:
+        key = (r["run"], r["session"])
+        if key not in pool_of:
+            ids = hub.db.segment_ids(*key)
+            pool_of[key] = {segment: pool_id for pool_id, segment in ids.items()}
+        opinions = hub.db.model_returns(*key)
+        model = None
+        if opinions is not None:
+            first, second = pool_of[key][r["first"]], pool_of[key][r["second"]]
+            difference = max(-50.0, min(50.0, opinions[first] - opinions[second]))
+            model = 1.0 / (1.0 + math.exp(-difference))
+        evidence.append((r["first"], r["second"], r["answer"], r["annotator"], model))
+    return estimate_reliability(evidence_rows(evidence))
+
+
+def _reliability_fields(found: Reliability | None) -> dict[str, Any]:
+    if found is None:
+        return {"reliability": None, "low": None, "high": None, "flagged": False}
+    return {
+        "reliability": found.estimate,
+        "low": found.low,
+        "high": found.high,
+        "rests_on": found.answers,
+        "flagged": found.flagged,
+    }
+
+
+def _kappas(rows: list[Any]) -> dict[str, float | None]:
+    """Each annotator's Cohen's kappa against the other answers to the pairs they
+    overlapped on (first / second / equal; skips left out)."""
+    by_pair: dict[tuple[int, int], list[tuple[str, str]]] = defaultdict(list)
+    for r in rows:
+        if r["answer"] in ("first", "second", "equal"):
+            pair = (min(r["first"], r["second"]), max(r["first"], r["second"]))
+            said = r["answer"]
+            if r["first"] > r["second"] and said != "equal":
+                said = "second" if said == "first" else "first"
+            by_pair[pair].append((r["annotator"], said))
+    pairs: dict[str, list[tuple[str, str]]] = defaultdict(list)
+    for answers in by_pair.values():
+        for who, said in answers:
+            pairs[who] += [(said, other) for person, other in answers if person != who]
+    return {who: cohen_kappa(found) for who, found in pairs.items()}
+
+
+def cohen_kappa(pairs: list[tuple[str, str]]) -> float | None:
+    """Cohen's kappa of paired labels; None for fewer than two pairs or when chance
+    agreement is certain (every label the same)."""
+    if len(pairs) < 2:
+        return None
+    observed = sum(a == b for a, b in pairs) / len(pairs)
+    left, right = Counter(a for a, _ in pairs), Counter(b for _, b in pairs)
+    n = len(pairs)
+    chance = sum(left[k] * right[k] for k in left) / (n * n)
+    return None if chance >= 1.0 else (observed - chance) / (1.0 - chance)
+
+
+def _chains(hub: Hub) -> list[dict[str, Any]]:
+    """The current session's chains: owner, answered of their questions."""
+    assert hub.crowd is not None
+    sessions = hub.db.sessions()
+    if not sessions:
+        return []
+    latest = sessions[-1]
+    run, session = latest["run"], latest["session"]
+    answered = Counter(
+        r["chain"] for r in hub.db.rows(ANSWERS_SQL) if r["run"] == run and r["session"] == session
+    )
+    return [
+        {
+            "session": session + 1,
+            "chain": c.chain,
+            "owner": c.owner,
+            "answered": answered.get(c.chain, 0),
+            "questions": c.budget,
+            "continues": c.parent,
+        }
+        for c in hub.crowd.tables.chains(run, session)
+    ]

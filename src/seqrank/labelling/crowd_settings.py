@@ -1,0 +1,21 @@
+"""A team's labelling page: its annotators with their tokens, and how work is shared out
+(`seqrank.labelling.crowd_source`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from seqrank.labelling.crowd_db import CrowdTables
+
+
+@dataclass
+class CrowdSettings:
+    tokens: dict[str, str]  # annotator -> their token, in the order given
+    operator_token: str  # the operator page's (`/operator`); annotators' tokens cannot open it
+    tables: CrowdTables
+    overlap: float = 0.1  # share of answers also asked of a second annotator
+    reassign_after: float = 60.0  # seconds a question waits before it is handed over
+
+    @property
+    def annotators(self) -> list[str]:
+        return list(self.tokens)
