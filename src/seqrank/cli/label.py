@@ -211,6 +211,7 @@ def _settings_of(options: Any) -> dict[str, Any]:
     settings = asdict(options)
     policy = settings.pop("policy_run")
     settings["from"] = None if policy is None else str(policy)
+    settings["annotators"] = list(settings["annotators"])  # as JSON gives it back
     return settings
 
 
