@@ -153,14 +153,21 @@ class _CrowdSession:
         stored = [c for c in self.tables.chains(self.run, self.session) if c.parent is None]
         if stored:
             return stored
-        people = len(self.source.crowd.annotators)
-        shares, _ = share_session(self.request.scheme, self.questions, self.pool_size, people)
+        shares = self._shares(len(self.source.crowd.annotators))
         return [
             self.tables.add_chain(
                 ChainRow(self.run, self.session, k, None, c.budget, c.pool_ids, None)
             )
             for k, c in enumerate(shares)
         ]
+
+    def _shares(self, people: int) -> list[Chain]:
+        """The session's chains for `people`, or for as many as its stored pool allows (a
+        session stored before the team grew)."""
+        scheme = self.request.scheme
+        while people > 1 and segments_needed(scheme, self.questions, people) > self.pool_size:
+            people -= 1
+        return share_session(scheme, self.questions, self.pool_size, people)[0]
 
     def run_chain(self, chain: ChainRow | None) -> list[tuple[SessionRecord, str]]:
         """The chain and whatever continues it after hand-overs: (record, its author)."""
@@ -288,8 +295,9 @@ class _CrowdSession:
             return self.tables.add_chain(row)
 
     def _reserve_segment(self, stored: list[ChainRow]) -> list[int]:
-        people = len(self.source.crowd.annotators)
-        _, reserve = share_session(self.request.scheme, self.questions, self.pool_size, people)
+        first = [c for c in stored if c.parent is None]
+        used = {s for c in first for s in c.pool}
+        reserve = [s for s in range(self.pool_size) if s not in used]
         taken = {s for c in stored if c.parent is not None for s in c.pool}
         free = [s for s in reserve if s not in taken]
         return free[:1]
