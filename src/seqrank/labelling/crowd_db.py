@@ -34,7 +34,7 @@ CREATE TABLE IF NOT EXISTS crowd_annotators (
     name TEXT PRIMARY KEY, token TEXT NOT NULL, position INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS crowd_chains (
     run TEXT NOT NULL, session INTEGER NOT NULL, chain INTEGER NOT NULL, parent INTEGER,
-    budget INTEGER NOT NULL, pool TEXT NOT NULL, owner TEXT,
+    budget INTEGER NOT NULL, pool TEXT NOT NULL, owner TEXT, done_at REAL,
     PRIMARY KEY (run, session, chain));
 CREATE TABLE IF NOT EXISTS crowd_questions (
     question_id INTEGER PRIMARY KEY REFERENCES questions (id), run TEXT NOT NULL,
@@ -106,7 +106,7 @@ class CrowdTables:
         """Store a chain (kept as it was if stored already); returns the stored one."""
         with self.db.transaction() as conn:
             conn.execute(
-                "INSERT OR IGNORE INTO crowd_chains VALUES (?, ?, ?, ?, ?, ?, ?)",
+                "INSERT OR IGNORE INTO crowd_chains VALUES (?, ?, ?, ?, ?, ?, ?, NULL)",
                 (chain.run, chain.session, chain.chain, chain.parent, chain.budget,
                  json.dumps(list(chain.pool)), chain.owner),
             )  # fmt: skip
@@ -115,6 +115,15 @@ class CrowdTables:
                 (chain.run, chain.session, chain.chain),
             ).fetchone()
         return _chain_from_row(row)
+
+    def finish_chain(self, run: str, session: int, chain: int) -> None:
+        """The chain asks nothing more (done, or handed over): its owner is free."""
+        with self.db.transaction() as conn:
+            conn.execute(
+                "UPDATE crowd_chains SET done_at = ? WHERE run = ? AND session = ? AND chain = ? "
+                "AND done_at IS NULL",
+                (time.time(), run, session, chain),
+            )
 
     def chain_owner(self, run: str, session: int, chain: int) -> str | None:
         rows = self.db.rows(
@@ -151,18 +160,23 @@ class CrowdTables:
         )
 
     def claim(self, annotator: str) -> StoredQuestion | None:
-        """The question `annotator` should answer now: their own oldest unanswered one,
-        else the oldest nobody holds of a chain (the chain becomes theirs), else the
-        oldest second opinion they may give; None when there is nothing for them."""
+        """The question `annotator` should answer now: their own oldest unanswered one;
+        else the oldest nobody holds of a chain (the chain becomes theirs), unless a chain
+        of theirs is still asking (its next question is coming); else the oldest second
+        opinion they may give; None when there is nothing for them."""
         with self.db.transaction() as conn:
             own = conn.execute(
                 f"{UNANSWERED} AND c.annotator = ? ORDER BY q.id LIMIT 1", (annotator,)
             ).fetchone()
             if own is not None:
                 return question_from_row(own)
+            busy = conn.execute(
+                "SELECT 1 FROM crowd_chains WHERE owner = ? AND done_at IS NULL", (annotator,)
+            ).fetchone()
+            chains_too = "" if busy is not None else " OR c.chain >= 0"
             free = conn.execute(
-                f"{UNANSWERED} AND c.annotator IS NULL AND (c.excluded IS NULL OR c.excluded "
-                "!= ?) ORDER BY c.chain < 0, q.id LIMIT 1",
+                f"{UNANSWERED} AND c.annotator IS NULL AND ((c.chain < 0 AND c.excluded != ?)"
+                f"{chains_too}) ORDER BY c.chain < 0, q.id LIMIT 1",
                 (annotator,),
             ).fetchone()
             if free is None:

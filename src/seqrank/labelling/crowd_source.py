@@ -21,6 +21,7 @@ import threading
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import suppress
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -186,6 +187,7 @@ class _CrowdSession:
             except BaseException:
                 self.failed.set()  # the other chains stop waiting too
                 raise
+            self.tables.finish_chain(self.run, self.session, chain.chain)
             owner = self.tables.chain_owner(self.run, self.session, chain.chain)
             if chain_record.answers:
                 results.append((chain_record, owner or ""))
@@ -304,10 +306,16 @@ class _CrowdSession:
 
     # ---- the session's end -------------------------------------------------------
     def second_opinions(self) -> list[SecondOpinion]:
-        """The second opinions given; those still open are withdrawn."""
+        """The second opinions given: those nobody took are withdrawn, those taken are
+        waited for (as a chain's question is, up to `reassign_after`)."""
         for open_question in self.tables.unanswered(self.run, self.session):
-            if open_question.chain < 0:
+            if open_question.chain >= 0:
+                continue
+            if open_question.annotator is None:
                 self.tables.withdraw_if_unanswered(open_question.question.id)
+                continue
+            with suppress(_Cut):
+                self._wait(open_question.question)
         pool_of = {segment: pool_id for pool_id, segment in self.segment_ids.items()}
         opinions = []
         for question, who, chain, answer, _ in self.tables.answered_by():
