@@ -113,7 +113,7 @@ def test_tokens_are_people_one_cannot_act_as_another_and_the_operator_page_is_th
         assert [p["name"] for p in view["annotators"]] == ["alice", "bob"]
         alice_row = view["annotators"][0]
         assert alice_row["answers"] == 1 and page.hub.crowd.tokens["alice"] in alice_row["address"]
-        assert view["chains"] and view["chains"][0]["owner"] == "alice"
+        assert "alice" in [chain["owner"] for chain in view["chains"]]
     finally:
         page.close()
 
