@@ -134,6 +134,13 @@ def _add_grid(actions: Any) -> None:
         help="full (the paper's closure), checked (noise-aware augmentation), "
         "comma-separated (full)",
     )
+    grid.add_argument(
+        "--weightings",
+        type=names(["reliability", "none"], "weighting"),
+        default=["reliability"],
+        help="a crowd teacher's labels: reliability (each the probability that its member "
+        "is right), none (as answered), comma-separated (reliability)",
+    )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     _add_grid_sizes(grid)
     grid.set_defaults(handler=run_grid)
@@ -307,6 +314,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             report,
             learners=args.learners,
             augments=args.augments,
+            weightings=args.weightings,
         )
     try:
         write_report(rows, args.out, "plain", out)

@@ -10,12 +10,18 @@ The model (a "one-coin" Dawid-Skene model, Dawid and Skene 1979):
   whose prior is 1/2.
 Expectation-maximisation alternates the posterior of each pair's truth given its opinions
 with p_j = the share of j's answers expected right. A pair only one opinion speaks for says
-nothing about anyone's reliability and is left out. Three things inform the estimate, as
-the issue asks: overlaps (two people on one pair), contradictions (one person's answers to
-one pair that disagree) and the reward model's agreement with each person. The estimate
-is the mean and the interval the 95% interval of the Beta posterior (from a uniform prior)
-that counts the expected right answers as observed: the interval says how many answers the
-estimate rests on, not how wrong the model may be.
+nothing about anyone's reliability and is left out. The model's own reliability is
+measured on the pairs two people or more answered (with a prior of 0.8 worth four pairs):
+on a pair only one person and the model speak for, a disagreement cannot say which of the
+two is wrong, and letting those pairs move it lets every person drift to "always right".
+Three things inform the estimate, as the issue asks: overlaps (two people on one pair),
+contradictions (one person's answers to one pair that disagree) and the reward model's
+agreement with each person. The estimate is the mean and the interval the 95% interval of
+the Beta posterior (from a uniform prior) that counts the expected right answers as
+observed: the interval says how many answers the estimate rests on, not how wrong the
+model may be. Where the model is weak (sequential and root sessions cut few distinct
+segments) and few pairs are overlapped, the data cannot tell people apart and every
+estimate drifts high: `results/crowd/` measures when it can.
 
 Why this model: it needs no gold questions, it works with the model alone when nobody
 overlaps, and its estimate is what reward training needs: the probability that an answer
@@ -36,6 +42,7 @@ ITERATIONS = 50
 FLAG_BELOW = 0.7  # an annotator estimated below this is flagged (never dropped) ...
 FLAG_AFTER = 20  # ... once the estimate rests on this many answers
 MODEL = "(model)"  # the reward model's name as a voter (no annotator's name has brackets)
+MODEL_PRIOR = 4  # pairs' worth of belief in the model's START reliability
 
 
 @dataclass(frozen=True)
@@ -79,14 +86,21 @@ def estimate_reliability(evidence: Sequence[Evidence]) -> dict[str, Reliability]
     who = np.array([names.index(e.annotator) for e in informative], dtype=np.int64)
     item = np.array([pair_index[e.pair] for e in informative], dtype=np.int64)
     said = np.array([e.said_first for e in informative], dtype=bool)
-    answers = np.bincount(who, minlength=len(names))
+    # the model's reliability is measured on pairs two people or more answered: where only
+    # one person and the model speak, "they disagree" cannot say which of them is wrong
+    model = names.index(MODEL) if MODEL in names else -1
+    people_on = np.bincount(item[who != model], minlength=len(pairs))
+    counts = (who != model) | (people_on[item] >= 2)
+    answers = np.bincount(who[counts], minlength=len(names))
     p: np.ndarray = np.full(len(names), START)
     counted: np.ndarray = np.zeros(len(names))
     for _ in range(ITERATIONS if len(informative) else 0):
         truth_first = _posterior(len(pairs), item, who, said, p)
         right = np.where(said, truth_first[item], 1.0 - truth_first[item])
-        counted = np.bincount(who, weights=right, minlength=len(names))
+        counted = np.bincount(who[counts], weights=right[counts], minlength=len(names))
         p = np.where(answers > 0, counted / np.maximum(answers, 1), START)
+        if model >= 0:  # (a prior of MODEL_PRIOR pairs at START: few overlaps, little news)
+            p[model] = (counted[model] + START * MODEL_PRIOR) / (answers[model] + MODEL_PRIOR)
     return {
         name: _summary(name, k, counted, answers, who, item, said) for k, name in enumerate(names)
     }

@@ -37,8 +37,10 @@ from scipy import stats
 from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.labels import LabelStore
+from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
+from seqrank.feedback.teachers import parse_teacher
 from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel, RewardTrainResult
 from seqrank.rewardbench.pool import Pool
@@ -74,7 +76,13 @@ class BenchSettings:
 
 # the grid's axes besides task and seed, with the value a row written before the axis
 # existed stands for (a new axis: a `Cell` field, an entry here, a `_row` key)
-AXES = {"scheme": None, "teacher": None, "learner": "plain", "augment": "full"}
+AXES = {
+    "scheme": None,
+    "teacher": None,
+    "learner": "plain",
+    "augment": "full",
+    "weighting": "reliability",
+}
 
 
 @dataclass(frozen=True)
@@ -84,6 +92,7 @@ class Cell:
     seed: int
     learner: str = "plain"
     augment: str = "full"  # checked: noise-aware augmentation (seqrank.feedback.checking)
+    weighting: str = "reliability"  # a crowd's labels (`--crowd-weighting`): or none
 
     def key(self, task: str) -> tuple[Any, ...]:
         return (task, *(getattr(self, axis) for axis in AXES), self.seed)
@@ -111,6 +120,13 @@ class _Tally:
     def __init__(self) -> None:
         self.asked = self.answered = self.inferred = self.inferred_wrong = 0
         self.strict = self.asked_wrong = 0
+        self.seconds = self.person_seconds = 0.0
+
+    def add_time(self, record: SessionRecord) -> None:
+        """A crowd's answering time: its sessions' lengths and everybody's time."""
+        if record.crowd is not None:
+            self.seconds += record.crowd.seconds
+            self.person_seconds += record.crowd.person_seconds
 
     def add(self, stats_: Any) -> None:
         self.asked += stats_.asked
@@ -141,12 +157,15 @@ def run_cell(
     model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
     source = source if source is not None else make_source(cell.teacher)
     recheck = Recheck() if cell.augment == "checked" else None
-    plan = SessionPlan(cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck)
+    crowd = len(parse_teacher(cell.teacher).members) if cell.teacher != "replay" else 0
+    plan = SessionPlan(
+        cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck, crowd=crowd
+    )
     # the learner's own stream (SURF's crops and unlabelled batches): the training shuffles
     # stay those of the plain cell of the same scheme and seed
     learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
     learner = make_learner(cell.learner, learner_stream)
-    labels, tally, session, rows = LabelStore(), _Tally(), 0, []
+    labels, tally, session, rows = LabelStore(cell.weighting), _Tally(), 0, []
     fitted = False  # whether the model has been fit yet (checked's second opinion)
     started = time.perf_counter()
     for budget in settings.budgets:
@@ -159,6 +178,7 @@ def run_cell(
             segments, record = source.ask_session(request)
             stored = store_session(segments, record, labels, request)
             tally.add(stored.stats)
+            tally.add_time(record)
             session += 1
         if not len(labels):
             continue  # every answer so far was a skip: nothing to learn from
@@ -175,7 +195,8 @@ def run_cell(
             learner=learner,
         )
         fitted = True
-        rows.append(_row(pool, cell, tally, len(labels), heldout, model, fit, started))
+        row = _row(pool, cell, tally, len(labels), heldout, model, fit, started)
+        rows.append({**row, **_crowd_measures(labels, tally)})
         if tally.asked < budget:
             break  # a replayed file ran out
     return rows
@@ -198,6 +219,7 @@ def _row(
         "teacher": cell.teacher,
         "learner": cell.learner,
         "augment": cell.augment,
+        "weighting": cell.weighting,
         "seed": cell.seed,
         "questions": tally.asked,
         "answered": tally.answered,
@@ -209,4 +231,28 @@ def _row(
         "epochs": fit.epochs,  # of this budget's fit, and the learner's own measures
         **fit.learner,
         "seconds": time.perf_counter() - started,
+    }
+
+
+def _crowd_measures(labels: LabelStore, tally: _Tally) -> dict[str, Any]:
+    """A crowd's: the time its people spent (sessions side by side, and added up), and
+    each member's reliability estimate beside their true error rate so far."""
+    if not labels.crowd_answers:
+        return {}
+    members = {}
+    for name, found in labels.reliability().items():
+        wrong = [
+            (answer == "first") != (labels.segment_returns[f] > labels.segment_returns[s])
+            for f, s, answer, who, _ in labels.crowd_answers
+            if who == name and answer in ("first", "second")
+        ]
+        members[name] = {
+            "estimate": found.estimate, "low": found.low, "high": found.high,
+            "answers": found.answers, "flagged": found.flagged,
+            "true_error_rate": float(np.mean(wrong)) if wrong else None,
+        }  # fmt: skip
+    return {
+        "crowd_minutes": tally.seconds / 60.0,
+        "person_minutes": tally.person_seconds / 60.0,
+        "members": members,
     }

@@ -97,6 +97,7 @@ class Grid:
         progress: Progress | None = None,
         learners: Sequence[str] = ("plain",),
         augments: Sequence[str] = ("full",),
+        weightings: Sequence[str] = ("reliability",),
     ) -> list[dict[str, Any]]:
         """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
         rows_path = self.out / "rows.jsonl"
@@ -106,10 +107,12 @@ class Grid:
         # seed by seed: a grid stopped part way leaves every combination with the same seeds
         todo = [
             (path, cell)
-            for seed, path, teacher, learner, augment, scheme in product(
-                seeds, self.tasks, teachers, learners, augments, schemes
+            for seed, path, teacher, learner, augment, weighting, scheme in product(
+                seeds, self.tasks, teachers, learners, augments, weightings, schemes
             )
-            if (cell := Cell(scheme, teacher, seed, learner, augment)).key(self.tasks[path])
+            if (cell := Cell(scheme, teacher, seed, learner, augment, weighting)).key(
+                self.tasks[path]
+            )
             not in done
         ]
         total, finished = len(todo) + len(done), len(done)

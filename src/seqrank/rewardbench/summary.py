@@ -21,10 +21,13 @@ Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questio
 
 
 def method(row: dict[str, Any]) -> str:
-    """The reward learner, with `+checked` under noise-aware augmentation (rows written
-    before these axes are plain and full)."""
+    """The reward learner, with `+checked` under noise-aware augmentation and
+    `+unweighted` for a crowd's labels taken as answered (rows written before these axes
+    are plain, full and weighted)."""
     learner = row.get("learner", "plain")
-    return learner if row.get("augment", "full") == "full" else f"{learner}+checked"
+    learner = learner if row.get("augment", "full") == "full" else f"{learner}+checked"
+    crowd = str(row.get("teacher", "")).startswith("crowd:")
+    return f"{learner}+unweighted" if crowd and row.get("weighting") == "none" else learner
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
