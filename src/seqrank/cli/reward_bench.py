@@ -118,7 +118,8 @@ def _add_grid(actions: Any) -> None:
         help="scripted teachers: presets (oracle, mistake, noisy, skip, myopic, equal), "
         "each optionally followed by its knobs, comma-separated: a knob=value part belongs "
         "to the teacher before it, e.g. oracle,mistake,eps_mistake=0.2; ';' also separates "
-        "teachers, e.g. 'oracle;beta=1' (oracle)",
+        "teachers, e.g. 'oracle;beta=1'; or a simulated crowd, crowd:oracle+mistake+noisy "
+        "(oracle)",
     )
     grid.add_argument(
         "--learners",
@@ -257,7 +258,7 @@ def _train_for_pool(started: Started, args: argparse.Namespace, err: Console) ->
 
 
 def _check_scripted(teachers: list[str]) -> None:
-    from seqrank.feedback.teachers import parse_scripted_teacher
+    from seqrank.feedback.teachers import CROWD_PREFIX, parse_crowd, parse_scripted_teacher
 
     for teacher in teachers:
         if teacher == "human" or teacher.startswith("replay:"):
@@ -265,7 +266,10 @@ def _check_scripted(teachers: list[str]) -> None:
                 f"teacher {teacher!r}: the grid asks scripted teachers only (labels from "
                 "the page are scored with `seqrank reward-bench score`)"
             )
-        parse_scripted_teacher(teacher)
+        if teacher.startswith(CROWD_PREFIX):
+            parse_crowd(teacher)  # a simulated crowd of scripted members
+        else:
+            parse_scripted_teacher(teacher)
 
 
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
