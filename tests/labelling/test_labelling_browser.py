@@ -516,3 +516,64 @@ def test_the_fine_tuning_study_in_the_browser(tmp_path):
     db = LabelDB.in_dir(study / "p1")
     assert len(db.answered_questions("root")) == 20 and db.survey("root")["satisfaction"] == 5
     db.close()
+
+
+def test_two_annotators_answer_side_by_side_in_two_browsers_and_the_operator_sees_both(
+    tmp_path,
+):
+    from seqrank.labelling.crowd_source import open_team, team_addresses
+
+    directory = tmp_path / "labels"
+    hub = open_hub(directory, TASK, ServerOptions(port=0, countdown_s=0.0))
+    open_team(hub, ["alice", "bob"], 0.0, 60.0)
+    server = PageServer(hub, ServerOptions(port=0))
+    server.start()
+    options = OfflineOptions(TASK, "sequential", 6, 1, 50, 1, 0, None, "full", ("alice", "bob"))
+
+    def drive() -> None:
+        with suppress(Stopped):
+            run_offline(directory, options, hub, lambda text: None)
+
+    thread = threading.Thread(target=drive, daemon=True)
+    thread.start()
+    addresses = dict(team_addresses(hub, server.base))
+    clickable = (
+        "() => !document.getElementById('left').disabled"
+        " && !document.getElementById('asking').hidden"
+    )
+    try:
+        with sync_api.sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            pages = {}
+            for name in ("alice", "bob"):  # a context each: their own cookie
+                context = browser.new_context(viewport={"width": 1100, "height": 820})
+                pages[name] = context.new_page()
+                pages[name].goto(addresses[name])
+            for page in pages.values():  # both have a question open at the same time
+                page.wait_for_function(clickable, timeout=60_000)
+            assert "annotator: alice" in pages["alice"].inner_text("#who")
+            assert "annotator: bob" in pages["bob"].inner_text("#who")
+            clicks = dict.fromkeys(pages, 0)
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and not all(
+                p.is_visible("#done") for p in pages.values()
+            ):
+                for name, page in pages.items():
+                    if page.evaluate(clickable):
+                        page.click("#left")
+                        clicks[name] += 1
+                        page.wait_for_timeout(100)
+            assert all(p.is_visible("#done") for p in pages.values())
+            operator = browser.new_context().new_page()
+            operator.goto(addresses["operator"])
+            operator.wait_for_selector("#annotators tbody tr[data-annotator='bob']", timeout=30_000)
+            shown = operator.locator("#annotators tbody tr").all_inner_texts()
+            browser.close()
+        thread.join(30)
+        stored = hub.db.answered_questions()
+        assert len(stored) == 6 == sum(clicks.values())
+        by = {a.annotator for _, a in stored}
+        assert by == {"alice", "bob"} and all(c > 0 for c in clicks.values())
+        assert [row.split()[0] for row in shown] == ["alice", "bob"]
+    finally:
+        stop(hub, server)
