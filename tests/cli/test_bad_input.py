@@ -167,6 +167,18 @@ CASES = [
         [*TRAIN, "--dry-run", "--teacher", "replay:{labels_mixed}"],
         "label file {labels_mixed} holds several schemes (root, sequential); a run replays",
     ),
+    # a simulated crowd: its settings, its members, and its settings without one
+    (
+        [*TRAIN, "--overlap", "1.5", "--teacher", "crowd:oracle+noisy", "--dry-run"],
+        "--overlap must be a number in [0, 1], got 1.5",
+    ),
+    ([*TRAIN, "--overlap", "0.5"], "on a crowd's answers; --teacher 'oracle' is one teacher"),
+    ([*TRAIN, "--teacher", "crowd:oracle++noisy"], "an empty crowd member"),
+    ([*TRAIN, "--teacher", "crowd:oracle,time=0"], "time must be a number of seconds > 0"),
+    (
+        [*TRAIN, "--teacher", "crowd:oracle+noisy", "--crowd-weighting", "soft"],
+        "unknown --crowd-weighting 'soft'; accepted: reliability, none",
+    ),
     ([*TRAIN, "--teacher", "perfect"], "unknown --teacher 'perfect'; accepted: oracle"),
     ([*TRAIN, "--task", "walker"], "unknown --task 'walker'; accepted: walker_walk"),
     ([*TRAIN, "--precision", "tf32"], "--precision 'tf32' needs the fast path"),
@@ -257,6 +269,9 @@ CASES = [
     (["simulate", "--seed", "-1"], "argument --seed: -1 is out of range"),
     (["simulate", "--out", "{file}"], "--out {file} is a file, not a folder"),
     (["simulate", "--schemes", "tree"], "unknown scheme 'tree'; accepted: pairwise"),
+    (["simulate", "--teachers", "crowd:oracle++noisy"], "an empty crowd member; write members"),
+    (["simulate", "--teachers", "crowd:oracle,name=a+noisy,name=a"], "member name 'a' must be"),
+    (["simulate", "--overlap", "1.5"], "argument --overlap: 1.5 is out of range; accepted: 0 to 1"),
     # reward-bench
     (["reward-bench", "pool", "--task", "nope", "--out", "p.npz"], "unknown task 'nope'"),
     (["reward-bench", "pool", "--out", "{dir}"], "pool file {dir} is a folder"),
