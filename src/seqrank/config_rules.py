@@ -66,8 +66,9 @@ def check_crowd(config: TrainConfig) -> None:
     given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
     if given:
         names = " and ".join(setting(name) for name in given)
+        act = "act" if len(given) > 1 else "acts"
         raise SettingError(
-            f"{names} act on a crowd's answers; {setting('teacher')} '{config.teacher}' is "
+            f"{names} {act} on a crowd's answers; {setting('teacher')} '{config.teacher}' is "
             "one teacher: leave them out, or use a crowd (crowd:oracle+mistake+noisy)"
         )
 

@@ -17,7 +17,7 @@ from seqrank.feedback import session as session_module
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.crowd import CrowdSource, share_session
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import SCHEMES, segments_needed, uniform_choice
+from seqrank.feedback.schemes import SCHEMES, handover_reserve, segments_needed, uniform_choice
 from seqrank.feedback.session import ScriptedSource, SessionRequest, store_session
 from seqrank.feedback.teachers import (
     ScriptedTeacher,
@@ -124,7 +124,7 @@ def test_three_members_answer_their_own_chains_and_the_closure_never_mixes_them(
         # the owners' answers are the session's questions, numbered in order
         assert len(record.answers) == len(people.answered_by) == questions
         assert [a.question.index for a in record.answers] == list(range(questions))
-        chains = share_session(scheme, questions, len(pool.rewards), 3)
+        chains, _ = share_session(scheme, questions, len(pool.rewards), 3)
         assert Counter(people.answered_by) == {names[k]: c.budget for k, c in enumerate(chains)}
         # each answer lies inside its owner's slice, so no segment is seen by two owners
         slice_owner = {i: names[k] for k, c in enumerate(chains) for i in c.pool_ids}
@@ -247,7 +247,7 @@ def test_each_chain_chooses_and_rechecks_within_its_own_slice(scheme):
     opinions (given for the whole pool) follow the chain's segments."""
     questions = 12
     pool = make_pool(segments_needed(scheme, questions, 3), seed=4)
-    chains = share_session(scheme, questions, len(pool.rewards), 3)
+    chains, _ = share_session(scheme, questions, len(pool.rewards), 3)
     slice_of = {i: k for k, c in enumerate(chains) for i in c.pool_ids}
     calls = []
 
@@ -283,24 +283,26 @@ def test_each_chain_chooses_and_rechecks_within_its_own_slice(scheme):
 
 
 def test_share_session_splits_the_questions_evenly_the_first_chains_taking_the_rest():
-    chains = share_session("sequential", 10, 13, 3)
+    chains, reserve = share_session("sequential", 10, 16, 3)
     assert [c.budget for c in chains] == [4, 3, 3]
     assert [c.pool_ids for c in chains] == [
         tuple(range(0, 5)),
         tuple(range(5, 9)),
         tuple(range(9, 13)),
     ]
-    # pairwise: 8, 6 and 6 segments needed, a pool of 45 holds twice that and 5 over
-    chains = share_session("pairwise", 10, 45, 3)
+    assert reserve == (13, 14, 15)  # one segment a chain, for a chain handed over
+    # pairwise: 8, 6 and 6 segments needed, a pool of 45 holds twice that and 5 over; a
+    # pair handed over needs no new first segment, so pairwise keeps no reserve
+    chains, reserve = share_session("pairwise", 10, 45, 3)
     assert [c.budget for c in chains] == [4, 3, 3]
-    assert [len(c.pool_ids) for c in chains] == [16, 12, 17]
+    assert [len(c.pool_ids) for c in chains] == [16, 12, 17] and reserve == ()
 
 
 def test_share_session_makes_no_chain_beyond_the_questions():
-    chains = share_session("root", 2, 10, 5)
+    chains, _ = share_session("root", 2, 10, 5)
     assert [c.budget for c in chains] == [1, 1]
-    assert share_session("ranked", 1, 4, 3)[0].budget == 1
-    assert len(share_session("ranked", 1, 4, 3)) == 1
+    assert share_session("ranked", 1, 4, 3)[0][0].budget == 1
+    assert len(share_session("ranked", 1, 4, 3)[0]) == 1
 
 
 @pytest.mark.parametrize("scheme", list(SCHEMES))
@@ -311,20 +313,21 @@ def test_share_session_cuts_the_pool_into_disjoint_contiguous_slices_that_suffic
     scheme, questions, people, extra
 ):
     pool = segments_needed(scheme, questions, people) + extra
-    chains = share_session(scheme, questions, pool, people)
+    chains, reserve = share_session(scheme, questions, pool, people)
     budgets = [c.budget for c in chains]
     assert sum(budgets) == questions
     assert len(chains) == min(people, questions)
     assert max(budgets) - min(budgets) <= 1 and budgets == sorted(budgets, reverse=True)
-    # slices in order, each contiguous, together the whole pool
-    assert [i for c in chains for i in c.pool_ids] == list(range(pool))
+    # slices in order, each contiguous, then the reserve: together the whole pool
+    assert [i for c in chains for i in c.pool_ids] + list(reserve) == list(range(pool))
+    assert len(reserve) == handover_reserve(scheme, questions, people)
     for c in chains:
         assert list(c.pool_ids) == list(range(c.pool_ids[0], c.pool_ids[-1] + 1))
         assert len(c.pool_ids) >= segments_needed(scheme, c.budget)
 
 
 @pytest.mark.parametrize(
-    ("scheme", "pool", "needed"), [("sequential", 12, 13), ("pairwise", 19, 20)]
+    ("scheme", "pool", "needed"), [("sequential", 15, 16), ("pairwise", 19, 20)]
 )
 def test_share_session_names_the_sizes_when_the_pool_is_too_small(scheme, pool, needed):
     with pytest.raises(ValueError, match=rf"\[4, 3, 3\].*need {needed} segments.*has {pool}"):
@@ -333,12 +336,13 @@ def test_share_session_names_the_sizes_when_the_pool_is_too_small(scheme, pool, 
         share_session(scheme, 10, 100, 0)
 
 
-def test_segments_needed_counts_one_first_segment_per_chain():
+def test_segments_needed_counts_one_first_segment_and_one_spare_per_chain():
     assert segments_needed("sequential", 10) == 11
-    assert segments_needed("sequential", 10, 3) == 13  # 4 + 1, 3 + 1, 3 + 1
-    assert segments_needed("root", 10, 3) == 13
-    assert segments_needed("ranked", 10, 3) == 13
-    assert segments_needed("root", 2, 5) == 4  # two chains only: one question each
+    assert segments_needed("sequential", 10, 3) == 16  # 4 + 1, 3 + 1, 3 + 1, and 3 spare
+    assert segments_needed("root", 10, 3) == 16
+    assert segments_needed("ranked", 10, 3) == 16
+    assert segments_needed("root", 2, 5) == 6  # two chains only: one question each
+    assert segments_needed("root", 5, 1) == 6  # one chain: no spare
     assert segments_needed("pairwise", 10, 3) == 20  # disjoint pairs, however shared
 
 

@@ -70,7 +70,8 @@ def test_the_model_vote_alone_informs_when_nobody_overlaps():
     assert estimates["x"].answers == estimates["y"].answers == 10
     assert estimates["x"].estimate > 0.8
     assert estimates["y"].estimate < 0.2
-    assert estimates[MODEL].answers == 20  # one vote a pair
+    # the model's own reliability rests on pairs two people answered: none here, its prior
+    assert estimates[MODEL].answers == 0
     # without the model nothing speaks for either: no answers counted, the prior's mean
     blind = estimate_reliability([said(e.pair, e.annotator, e.said_first) for e in x + y])
     for name in ("x", "y"):
@@ -220,8 +221,8 @@ def test_unweighted_training_labels_are_the_labels():
 def test_weighted_training_labels_are_each_annotators_probability_of_being_right():
     labels = crowd_store("reliability", overlap=0.5, with_model=True)
     trust = labels.reliability()
-    assert set(trust) == {"oracle", "member", "noisy"}  # the model's own left out
-    assert trust["oracle"].estimate > trust["member"].estimate
+    assert set(trust) == {"oracle", "mistake", "noisy"}  # the model's own left out
+    assert trust["oracle"].estimate > trust["mistake"].estimate
     weighted = labels.training_labels()
     assert len(weighted) == len(labels.labels)
     for label, name, soft in zip(labels.labels, labels.annotator, weighted, strict=True):

@@ -102,7 +102,8 @@ def estimate_reliability(evidence: Sequence[Evidence]) -> dict[str, Reliability]
         if model >= 0:  # (a prior of MODEL_PRIOR pairs at START: few overlaps, little news)
             p[model] = (counted[model] + START * MODEL_PRIOR) / (answers[model] + MODEL_PRIOR)
     return {
-        name: _summary(name, k, counted, answers, who, item, said) for k, name in enumerate(names)
+        name: _summary(name, k, counted, answers, who[counts], item[counts], said[counts], model)
+        for k, name in enumerate(names)
     }
 
 
@@ -137,10 +138,11 @@ def _summary(
     who: np.ndarray,
     item: np.ndarray,
     said: np.ndarray,
+    model: int,
 ) -> Reliability:
     right, n = float(counted[k]), int(answers[k])
     posterior = beta_distribution(right + 1.0, n - right + 1.0)
-    agreeing, overlapping = _agreement(k, who, item, said)
+    agreeing, overlapping = _agreement(k, who, item, said, model)
     return Reliability(
         name,
         (right + 1.0) / (n + 2.0),
@@ -152,12 +154,14 @@ def _summary(
     )
 
 
-def _agreement(k: int, who: np.ndarray, item: np.ndarray, said: np.ndarray) -> tuple[int, int]:
-    """(agreeing, compared): annotator k's answers on pairs somebody else answered, and
-    how many of them agree with every other person's answer to the pair."""
+def _agreement(
+    k: int, who: np.ndarray, item: np.ndarray, said: np.ndarray, model: int
+) -> tuple[int, int]:
+    """(agreeing, compared): annotator k's answers on pairs another person answered (the
+    model's vote is not a person's), and how many agree with every other person's."""
     others: dict[int, list[bool]] = defaultdict(list)
     for person, pair, first in zip(who, item, said, strict=True):
-        if person != k:
+        if person != k and person != model:
             others[int(pair)].append(bool(first))
     shared = [
         (int(pair), bool(first))

@@ -201,7 +201,8 @@ def _crowd_member(text: str, value: str, taken: list[str]) -> CrowdMember:
     also = "; a crowd member also takes time= and name="
     spec = parse_scripted_teacher(teacher or "oracle", also)
     assert spec.scripted is not None
-    name = extra.get("name", spec.short_name if spec.short_name != "custom" else "member")
+    preset = parts[0] if parts and "=" not in parts[0] else "member"  # (knobs alone: member)
+    name = extra.get("name", preset)
     if "name" in extra and (not name or name in taken or not name.replace("-", "").isalnum()):
         raise SettingError(
             f"{setting('teacher')} {value!r}: member name {name!r} must be letters, digits "
