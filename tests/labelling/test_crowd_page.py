@@ -109,6 +109,9 @@ def test_tokens_are_people_one_cannot_act_as_another_and_the_operator_page_is_th
         assert alice.get("/operator").status_code == 403
         assert alice.get("/api/operator").status_code == 403
         assert operator.get("/operator").status_code == 200
+        # every answer is the operator's to read, not an annotator's
+        assert alice.get("/api/labels.jsonl").status_code == 403
+        assert operator.get("/api/labels.jsonl").status_code == 200
         view = operator.get("/api/operator").json()
         assert [p["name"] for p in view["annotators"]] == ["alice", "bob"]
         alice_row = view["annotators"][0]

@@ -30,7 +30,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from seqrank.labelling.access import OPERATOR, Access, AccessGuard
 from seqrank.labelling.crowd_db import NotYours
-from seqrank.labelling.db import AnswerConflict, LabelDB, NotAsked, StoredQuestion
+from seqrank.labelling.db import AnswerConflict, NotAsked, StoredQuestion
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
 from seqrank.labelling.limits import (
@@ -81,7 +81,7 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
         app.include_router(_operator_routes(hub))
     app.include_router(_clip_routes(hub))
     app.include_router(_survey_routes(hub))
-    app.include_router(_export_routes(hub.db))
+    app.include_router(_export_routes(hub))
     return app
 
 
@@ -278,11 +278,13 @@ def _survey_routes(hub: Hub) -> APIRouter:
     return router
 
 
-def _export_routes(db: LabelDB) -> APIRouter:
+def _export_routes(hub: Hub) -> APIRouter:
     router = APIRouter()
 
     @router.get("/api/labels.jsonl", response_class=PlainTextResponse)
-    def labels() -> str:
-        return "".join(line + "\n" for line in export_lines(db))
+    def labels(request: Request) -> str:
+        if hub.crowd is not None and request.state.who != OPERATOR:  # a team's: not annotators
+            raise HTTPException(403, "every answer is the operator's to read")
+        return "".join(line + "\n" for line in export_lines(hub.db))
 
     return router
