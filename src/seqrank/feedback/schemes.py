@@ -256,7 +256,9 @@ def segments_needed(scheme: str, budget: int, chains: int = 1) -> int:
     Several chains keep `handover_reserve` segments more."""
     if not scheme_has_defender(scheme):
         return 2 * budget
-    return budget + min(chains, budget) + handover_reserve(scheme, budget, chains)
+    # a chain's first segment: one at least, so an empty session still draws a defender
+    first_segments = max(1, min(chains, budget))
+    return budget + first_segments + handover_reserve(scheme, budget, chains)
 
 
 def handover_reserve(scheme: str, budget: int, chains: int) -> int:

@@ -156,11 +156,7 @@ def run_cell(
     features = pool.obs.shape[2] + pool.action.shape[2]
     model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
     source = source if source is not None else make_source(cell.teacher)
-    recheck = Recheck() if cell.augment == "checked" else None
-    crowd = len(parse_teacher(cell.teacher).members) if cell.teacher != "replay" else 0
-    plan = SessionPlan(
-        cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck, crowd=crowd
-    )
+    plan = _plan(cell, settings)
     # the learner's own stream (SURF's crops and unlabelled batches): the training shuffles
     # stay those of the plain cell of the same scheme and seed
     learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
@@ -200,6 +196,15 @@ def run_cell(
         if tally.asked < budget:
             break  # a replayed file ran out
     return rows
+
+
+def _plan(cell: Cell, settings: BenchSettings) -> SessionPlan:
+    """A cell's sessions: uniform selection, `checked`'s repeats, a crowd's chains."""
+    recheck = Recheck() if cell.augment == "checked" else None
+    crowd = len(parse_teacher(cell.teacher).members) if cell.teacher != "replay" else 0
+    return SessionPlan(
+        cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck, crowd=crowd
+    )
 
 
 def _row(
