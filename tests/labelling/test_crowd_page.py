@@ -9,7 +9,7 @@ from collections import defaultdict
 import pytest
 
 from seqrank.labelling.crowd_db import CHAIN_STRIDE
-from support.crowd import Annotator, TeamPage, run_team
+from support.crowd import Annotator, TeamPage, run_team, start_team
 
 TEAM = ["alice", "bob", "carol"]
 
@@ -84,6 +84,28 @@ def test_a_member_who_stops_answering_has_their_chain_handed_over(tmp_path):
         page.close()
 
 
+def test_a_late_joiner_gets_work_at_the_next_question(tmp_path):
+    page = TeamPage(tmp_path / "labels", TEAM, "pairwise", questions=12, overlap=0.0)
+    try:
+        early = [Annotator(page, "alice", pace=0.3), Annotator(page, "bob", pace=0.3)]
+        for annotator in early:
+            annotator.start()
+        for _ in range(600):  # carol arrives once the others are answering
+            if early[0].posts:
+                break
+            page.done.wait(0.05)
+        assert early[0].posts and not page.done.is_set()
+        carol = Annotator(page, "carol")
+        run_team(page, [carol])
+        for annotator in early:
+            annotator.join(10)
+        chains, _ = chain_answers(page)
+        assert len(chains) == 12
+        assert sum(who == "carol" for _, _, who, *_ in chains) > 0  # the free chain was hers
+    finally:
+        page.close()
+
+
 def test_tokens_are_people_one_cannot_act_as_another_and_the_operator_page_is_the_operators(
     tmp_path,
 ):
@@ -143,36 +165,14 @@ def _wait_question(client, tries: int = 600) -> dict:
     raise AssertionError("no question was shown")
 
 
-def start_team(directory, names: str):
+def start_offline_team(directory, names: str):
     """`seqrank label offline --annotators NAMES` as a process, and each page's address."""
-    import os
-    import re
-    import subprocess
-    import sys
-    import time
-
     command = [
-        sys.executable, "-m", "seqrank", "label", "offline", "--task", "dmc:cartpole_swingup",
-        "--scheme", "sequential", "--questions", "8", "--episodes", "1", "--port", "0",
-        "--annotators", names, "--out", str(directory),
+        "label", "offline", "--task", "dmc:cartpole_swingup", "--scheme", "sequential",
+        "--questions", "8", "--episodes", "1", "--port", "0", "--annotators", names,
+        "--out", str(directory),
     ]  # fmt: skip
-    process = subprocess.Popen(
-        command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-        env={**os.environ, "COLUMNS": "200"},
-    )  # fmt: skip
-    addresses: dict[str, str] = {}
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and len(addresses) < len(names.split(",")) + 1:
-        line = process.stderr.readline()
-        found = re.search(r"(\S+)'s page: (http://\S+)", line)
-        if found:
-            addresses[found.group(1)] = found.group(2)
-        elif not line and process.poll() is not None:
-            break
-    import threading
-
-    threading.Thread(target=process.stderr.read, daemon=True).start()
-    return process, addresses
+    return start_team(command, tuple(names.split(",")))
 
 
 def _post(address: str, path: str, body=None):
@@ -191,7 +191,7 @@ def test_a_team_killed_outright_keeps_every_acknowledged_answer_and_the_same_add
     import time
 
     directory = tmp_path / "labels"
-    process, addresses = start_team(directory, "alice,bob")
+    process, addresses = start_offline_team(directory, "alice,bob")
     acknowledged = {}
     try:
         assert set(addresses) == {"operator", "alice", "bob"}
@@ -208,7 +208,7 @@ def test_a_team_killed_outright_keeps_every_acknowledged_answer_and_the_same_add
     finally:
         process.send_signal(signal.SIGKILL)
         process.wait(10)
-    process, again = start_team(directory, "alice,bob")
+    process, again = start_offline_team(directory, "alice,bob")
     try:
         # the annotators' tokens are kept: their bookmarked pages keep working (the port is
         # a free one each time here; the operator's token is new unless --token gives it)

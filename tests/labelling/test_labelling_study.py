@@ -7,16 +7,7 @@ import json
 
 from seqrank.cli import main
 from seqrank.labelling.db import LabelDB
-from support.pages import Participant, start_command
-
-TINY = [
-    "--task", "dmc:cartpole_swingup", "--steps", "1800", "--seed-steps", "300",
-    "--unsup-steps", "900", "--feedback-frequency", "500", "--max-feedback", "10",
-    "--reward-batch", "5", "--hidden", "32", "--batch", "32", "--reward-hidden", "32",
-    "--reward-epochs", "5", "--eval-every", "900", "--eval-episodes", "1",
-    "--heldout-pairs", "50", "--device", "cpu", "--countdown", "0", "--port", "0",
-    "--size", "64",  # small clips: the page, not the picture, is under test
-]  # fmt: skip
+from support.pages import TINY, Participant, start_command
 
 
 def test_study_runs_three_methods_with_surveys_and_reports(tmp_path):

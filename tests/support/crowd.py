@@ -3,7 +3,11 @@ HTTP client per annotator (or the operator), each with their own token."""
 
 from __future__ import annotations
 
+import os
 import random
+import re
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -108,3 +112,30 @@ def run_team(page: TeamPage, annotators: list[Annotator], timeout: float = 120.0
     for annotator in annotators:
         annotator.join(10)
     assert not page.errors, page.errors
+
+
+def start_team(args: list[str], names: tuple[str, ...]) -> tuple[subprocess.Popen[str], dict]:
+    """Start `seqrank ARGS` for the team `names`; returns the process and the address it
+    printed for each name and for the operator."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "seqrank", *args],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, "COLUMNS": "200"},
+    )
+    assert process.stderr is not None
+    addresses: dict[str, str] = {}
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(addresses) <= len(names):
+        line = process.stderr.readline()
+        found = re.search(r"(\S+)'s page: (http://\S+)", line)
+        if found:
+            addresses[found.group(1)] = found.group(2)
+        elif not line and process.poll() is not None:
+            break
+    if len(addresses) <= len(names):
+        process.kill()
+        raise AssertionError(f"the team's addresses were not printed: {addresses}")
+    threading.Thread(target=process.stderr.read, daemon=True).start()  # never a full pipe
+    return process, addresses

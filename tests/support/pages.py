@@ -24,6 +24,15 @@ from seqrank.labelling.server import create_app
 
 TASK = "dmc:cartpole_swingup"
 LOCAL = "http://127.0.0.1:8765"  # a Host the guard serves (TestClient's own is "testserver")
+# a labelling run of minutes: ten questions on cartpole, small nets and clips
+TINY = [
+    "--task", "dmc:cartpole_swingup", "--steps", "1800", "--seed-steps", "300",
+    "--unsup-steps", "900", "--feedback-frequency", "500", "--max-feedback", "10",
+    "--reward-batch", "5", "--hidden", "32", "--batch", "32", "--reward-hidden", "32",
+    "--reward-epochs", "5", "--eval-every", "900", "--eval-episodes", "1",
+    "--heldout-pairs", "50", "--device", "cpu", "--countdown", "0", "--port", "0",
+    "--size", "64",  # small clips: the page, not the picture, is under test
+]  # fmt: skip
 
 
 def page_client(hub: Hub, access: Access | None = None, **options: Any) -> TestClient:
