@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install browser run test lint typecheck pytest wheel clean
+.PHONY: install browser run test lint typecheck pytest wheel docs clean
 
 # The browser test drives Debian's chromium (never a downloaded browser): install it if absent.
 SUDO := $(shell [ "$$(id -u)" -eq 0 ] || echo sudo)
@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	# The CPU build of torch that lies on disk here; any other resolves to a multi-GB CUDA build.
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet -e '.[dev,docs]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -43,7 +43,11 @@ pytest: $(STAMP) browser
 wheel: $(STAMP)
 	scripts/check_wheel.sh
 
-test: lint typecheck pytest wheel
+# The documentation site, strict (a broken link or a warning fails) and offline, into site/.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+
+test: lint typecheck docs pytest wheel
 
 clean:
-	rm -rf $(VENV) seqrank-out .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) seqrank-out site .pytest_cache .mypy_cache .ruff_cache
