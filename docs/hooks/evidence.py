@@ -1,9 +1,9 @@
 """MkDocs hook: each results folder is an evidence page.
 
-`results/NAME/README.md` is served as `evidence/NAME/index.md` and the folder's pictures
-and tables beside it, so the README's own relative links work on the site as they do in
-the repository; `results/NAME.md` is served as `evidence/NAME.md`. Nothing is copied into
-`docs/`: the results stay the one source.
+`results/NAME/...` is served as `evidence/NAME/...` (a README.md as the folder's page,
+its pictures and tables beside it), so the READMEs' relative links work on the site as
+they do in the repository. Nothing is copied into `docs/`: the results stay the one
+source.
 """
 
 from __future__ import annotations
@@ -23,11 +23,6 @@ def on_files(files: Files, config: Any) -> Files:
         relative = path.relative_to(results)
         if not path.is_file() or path.suffix not in SERVED or SKIPPED & set(relative.parts):
             continue
-        if path.name == "README.md":
-            target = relative.with_name("index.md")
-        else:
-            target = relative
-        files.append(
-            File.generated(config, f"evidence/{target.as_posix()}", abs_src_path=str(path))
-        )
+        uri = f"evidence/{relative.as_posix()}"
+        files.append(File.generated(config, uri, abs_src_path=str(path)))
     return files

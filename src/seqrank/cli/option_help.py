@@ -9,7 +9,8 @@ MEANINGS = {
     "module.path:factory",
     "scheme": "how questions are asked: pairwise, sequential, root, ranked",
     "teacher": "oracle, mistake, noisy, skip, myopic, equal (optionally ,knob=value...), "
-    "or replay:FILE (a person answers through `seqrank label online`)",
+    "replay:FILE, or a simulated crowd crowd:oracle+mistake+noisy (a person answers "
+    "through `seqrank label online`, a team with its --annotators)",
     "reward": "learned (from preferences); true (the environment's reward) or none (the "
     "untrained reward model): baselines that ask nothing",
     "backbone": "pebble or mrn",
