@@ -38,9 +38,9 @@ def parsers(
 
 
 def _default(action: argparse.Action) -> str:
-    if action.option_strings and action.option_strings[-1] in MACHINE_DEFAULTS:
-        if action.default == (os.cpu_count() or 1):
-            return MACHINE_DEFAULTS[action.option_strings[-1]]
+    option = action.option_strings[-1] if action.option_strings else ""
+    if option in MACHINE_DEFAULTS and action.default == (os.cpu_count() or 1):
+        return MACHINE_DEFAULTS[option]
     if isinstance(action, argparse._StoreTrueAction | argparse._StoreFalseAction):
         return ""
     if action.default in (None, argparse.SUPPRESS, "", [], ()):
