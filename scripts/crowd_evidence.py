@@ -1,0 +1,147 @@
+"""The crowd's tables from a reward-benchmark grid (results/crowd/README.md).
+
+    python scripts/crowd_evidence.py results/crowd/bench > results/crowd/tables.md
+
+Reads the grid's rows.jsonl: each member alone (its own teacher spec) and the crowd, with
+and without reliability weighting, on the same pool and seeds. Writes three tables:
+held-out accuracy per question budget; the same at the largest budget against person- and
+wall-clock minutes; and each member's estimated reliability against its true error rate.
+A member alone answers at the crowd's pace (`ANSWER_SECONDS` an answer, one after another),
+so its person-minutes are its wall-clock minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from seqrank.rewardbench.intervals import bounded_interval
+
+ANSWER_SECONDS = 3.0  # a crowd member's default answer time (`time=` of crowd:...)
+ALONE = {  # the crowd's members as teachers of their own
+    "oracle": "oracle",
+    "mistake": "mistake",
+    "mistake,eps_mistake=0.3": "noisy (mistake, eps_mistake=0.3)",
+}
+
+
+def method_of(row: dict[str, Any]) -> str:
+    if row["teacher"].startswith("crowd:"):
+        return f"crowd, {'weighted' if row['weighting'] == 'reliability' else 'unweighted'}"
+    return f"{ALONE.get(row['teacher'], row['teacher'])} alone"
+
+
+def _ci(values: list[float], low: float = 0.0, high: float = 1.0) -> str:
+    if not values:
+        return "-"
+    mean, lo, hi = bounded_interval(values, low, high)
+    if lo is None or hi is None:
+        return f"{mean:.3f}"
+    return f"{mean:.3f} [{lo:.3f}, {hi:.3f}]"
+
+
+def accuracy_table(rows: list[dict[str, Any]]) -> list[str]:
+    cells: dict[tuple[str, int, str], list[float]] = defaultdict(list)
+    for row in rows:
+        cells[(row["scheme"], row["questions"], method_of(row))].append(row["accuracy"])
+    methods = sorted({m for _, _, m in cells}, key=lambda m: (not m.startswith("crowd"), m))
+    lines = [
+        "| scheme | questions | " + " | ".join(methods) + " |",
+        "|---|---|" + "---|" * len(methods),
+    ]
+    for scheme, questions in sorted({(s, q) for s, q, _ in cells}):
+        values = [_ci(cells.get((scheme, questions, m), [])) for m in methods]
+        lines.append(f"| {scheme} | {questions} | " + " | ".join(values) + " |")
+    return lines
+
+
+def paired_gain(rows: list[dict[str, Any]]) -> list[str]:
+    """Weighted minus unweighted accuracy, paired by seed (the same answers, trained twice)."""
+    crowd = [r for r in rows if r["teacher"].startswith("crowd:")]
+    by: dict[tuple[str, int], dict[str, dict[int, float]]] = defaultdict(lambda: defaultdict(dict))
+    for row in crowd:
+        by[(row["scheme"], row["questions"])][row["weighting"]][row["seed"]] = row["accuracy"]
+    lines = ["| scheme | questions | weighted - unweighted [95% CI] | seeds |", "|---|---|---|---|"]
+    for (scheme, questions), sides in sorted(by.items()):
+        seeds = sorted(set(sides["reliability"]) & set(sides["none"]))
+        gains = [sides["reliability"][s] - sides["none"][s] for s in seeds]
+        if gains:
+            lines.append(f"| {scheme} | {questions} | {_ci(gains, -1.0, 1.0)} | {len(seeds)} |")
+    return lines
+
+
+def time_table(rows: list[dict[str, Any]]) -> list[str]:
+    largest = max(row["questions"] for row in rows)
+    cells: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
+    for row in rows:
+        if row["questions"] == largest:
+            cells[(row["scheme"], method_of(row))].append(row)
+    lines = [
+        f"| scheme | method ({largest} questions) | person-minutes | wall-clock minutes "
+        "| accuracy [95% CI] | accuracy per person-minute |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (scheme, method), group in sorted(cells.items()):
+        if method.startswith("crowd"):
+            person = float(np.mean([r["person_minutes"] for r in group]))
+            wall = float(np.mean([r["crowd_minutes"] for r in group]))
+        else:
+            person = wall = float(np.mean([r["answered"] for r in group])) * ANSWER_SECONDS / 60
+        accuracy = [r["accuracy"] for r in group]
+        per_minute = float(np.mean(accuracy)) / person
+        lines.append(
+            f"| {scheme} | {method} | {person:.2f} | {wall:.2f} | {_ci(accuracy)} "
+            f"| {per_minute:.3f} |"
+        )
+    return lines
+
+
+def reliability_table(rows: list[dict[str, Any]]) -> list[str]:
+    largest = max(row["questions"] for row in rows)
+    cells: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
+    for row in rows:
+        if row.get("members") and row["questions"] == largest and row["weighting"] != "none":
+            for name, member in row["members"].items():
+                cells[(row["scheme"], name)].append(member)
+    lines = [
+        f"| scheme | member | true accuracy (1 - error rate) | estimated reliability at "
+        f"{largest} questions [95% CI] | mean interval | answers it rests on | flagged |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for (scheme, name), members in sorted(cells.items()):
+        truth = 1 - float(np.mean([m["true_error_rate"] for m in members]))
+        estimate = _ci([m["estimate"] for m in members])
+        low = float(np.mean([m["low"] for m in members]))
+        high = float(np.mean([m["high"] for m in members]))
+        answers = float(np.mean([m["answers"] for m in members]))
+        flagged = sum(bool(m["flagged"]) for m in members)
+        lines.append(
+            f"| {scheme} | {name} | {truth:.3f} | {estimate} | [{low:.2f}, {high:.2f}] "
+            f"| {answers:.0f} | {flagged}/{len(members)} |"
+        )
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("grid", type=Path, help="the grid's folder (holds rows.jsonl)")
+    grid = parser.parse_args().grid
+    rows = [json.loads(line) for line in (grid / "rows.jsonl").read_text().splitlines()]
+    sections = [
+        ("Held-out accuracy by question budget (mean [95% CI] over seeds)", accuracy_table),
+        ("Reliability weighting: the paired gain", paired_gain),
+        ("Human time at the largest budget", time_table),
+        ("Each member's estimated reliability against the truth", reliability_table),
+    ]
+    for title, table in sections:
+        print(f"### {title}\n")
+        print("\n".join(table(rows)) + "\n")
+
+
+if __name__ == "__main__":
+    main()
