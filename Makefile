@@ -24,8 +24,8 @@ run: $(STAMP)
 	$(VENV)/bin/seqrank train
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests scripts examples
-	$(VENV)/bin/ruff format --check src tests scripts examples
+	$(VENV)/bin/ruff check src tests scripts examples docs/hooks
+	$(VENV)/bin/ruff format --check src tests scripts examples docs/hooks
 
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy
