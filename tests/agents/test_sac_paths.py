@@ -107,7 +107,7 @@ def test_fp32_updates_match_the_reference_from_the_same_state_and_batch():
     ],
 )
 def test_reduced_precision_stays_within_its_documented_tolerance(precision, device):
-    """bf16 and TF32 (README, "Speed"): losses within 1%, the parameter steps pointing the
+    """bf16 and TF32 (docs/guides/speed.md): losses within 1%, the parameter steps pointing the
     same way (cosine similarity at least 0.98)."""
     reference, fast = twins(precision, device)
     before = [p.detach().clone() for p in reference.actor.parameters()]
