@@ -10,8 +10,9 @@ update reads a value back to the host: losses are read when `last_metrics` is as
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import torch
@@ -19,6 +20,7 @@ import torch.nn.functional as F
 
 from seqrank.agents.critics import Critic, StackedTwinCritic, TwinCritic
 from seqrank.agents.cuda_graph import GraphedCall
+from seqrank.agents.graph_check import UpdateProbe, check_first_replay
 from seqrank.agents.networks import Actor, squashed_gaussian
 from seqrank.agents.precision import autocast, matmul_precision
 from seqrank.agents.sac_state import load_sac_state, sac_state
@@ -102,6 +104,9 @@ class SAC:
         self.updates = 0
         self._metrics: dict[str, torch.Tensor] = {}
         self._graphs: tuple[tuple[int, int], GraphedCall, GraphedCall] | None = None
+        self._graph_inputs: tuple[Batch, torch.Tensor, torch.Tensor] | None = None
+        self.graph_checked = False
+        self.fallback: str | None = None  # why the graph updates were given up, if they were
 
     def _adam(self, params: Iterable[torch.Tensor], lr: float) -> torch.optim.Adam:
         if not self.execution.fused_adam:
@@ -144,8 +149,33 @@ class SAC:
             return
         step, target = self._captured(replay, batch_size)
         with matmul_precision(self.execution.precision):
-            step()
-        self._count_update(target)
+            if self.graph_checked:
+                step()
+            elif not self._checked_first_replay(step):  # the capture raised: no update yet
+                self.update(replay.sample(batch_size, generator), generator)
+                return
+        self._count_update(target if self.fallback is None else self._soft_update_target)
+
+    def _checked_first_replay(self, step: GraphedCall) -> bool:
+        """The first replay checked against the eager update on its batch (`graph_check`);
+        on a failure the run continues eager, saying so once. Whether an update was made."""
+        self.graph_checked = True
+
+        def eager() -> None:
+            assert self._graph_inputs is not None  # the capture recorded them
+            self._step(*self._graph_inputs)
+
+        weights = [*self.actor.parameters(), *self.critic.parameters(), self.log_alpha]
+        probe = UpdateProbe(step, eager, self._touched, lambda: weights, lambda: self.last_metrics)
+        failure, updated = check_first_replay(probe)
+        if failure is not None:
+            self.fallback = failure
+            self.execution, self._graphs = replace(self.execution, graphs=False), None
+            sys.stderr.write(
+                f"warning: fast path: {failure}; the run continues with eager updates "
+                "(--path reference runs without the fast path)\n"
+            )
+        return updated
 
     def reset_critic(self) -> None:
         """Fresh critic weights, target and Adam state, written in place so that a captured
@@ -250,7 +280,9 @@ class SAC:
 
             def sampled_step() -> None:
                 batch = replay.sample_on_device(batch_size)
-                self._step(batch, self.noise(batch_size, _UNUSED), self.noise(batch_size, _UNUSED))
+                noises = self.noise(batch_size, _UNUSED), self.noise(batch_size, _UNUSED)
+                self._graph_inputs = (batch, *noises)  # the check replays these eagerly
+                self._step(batch, *noises)
 
             step = GraphedCall(sampled_step, self._touched)
             self._graphs = (key, step, GraphedCall(self._soft_update_target, list, warmup=False))
