@@ -7,9 +7,9 @@ CLI and the sweep files keep using plain strings.
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import TypeVar
 
 from seqrank.errors import SettingError, setting
+from seqrank.errors import parse_choice as parse_choice  # defined with the error it raises
 
 
 class Backbone(StrEnum):
@@ -82,19 +82,6 @@ class Selection(StrEnum):
     UNIFORM = "uniform"
     DISAGREEMENT = "disagreement"
     ENTROPY = "entropy"
-
-
-Choice = TypeVar("Choice", bound=StrEnum)
-
-
-def parse_choice(kind: type[Choice], value: object, what: str) -> Choice:
-    """`value` as a member of `kind`; a SettingError names the bad value and what is
-    accepted (`what`: the setting's name)."""
-    try:
-        return kind(str(value)) if isinstance(value, str) else kind(value)  # type: ignore[arg-type]
-    except ValueError:
-        accepted = ", ".join(member.value for member in kind)
-        raise SettingError(f"unknown {setting(what)} {value!r}; accepted: {accepted}") from None
 
 
 def check_path(path: str, precision: str, discrete: bool) -> None:

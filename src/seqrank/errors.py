@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from enum import StrEnum
+from typing import TypeVar
 
 # marks a setting's name inside a SettingError's message (never shown: str() spells it)
 _MARK = "\x00"
@@ -33,3 +35,16 @@ class SettingError(ValueError):
 
     def spelled(self, spell: Callable[[str], str]) -> str:
         return _MARKED.sub(lambda found: spell(found.group(1)), self.marked)
+
+
+Choice = TypeVar("Choice", bound=StrEnum)
+
+
+def parse_choice(kind: type[Choice], value: object, what: str) -> Choice:
+    """`value` as a member of `kind`; a SettingError names the bad value and what is
+    accepted (`what`: the setting's name)."""
+    try:
+        return kind(str(value)) if isinstance(value, str) else kind(value)  # type: ignore[arg-type]
+    except ValueError:
+        accepted = ", ".join(member.value for member in kind)
+        raise SettingError(f"unknown {setting(what)} {value!r}; accepted: {accepted}") from None

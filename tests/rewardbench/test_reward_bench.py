@@ -329,6 +329,11 @@ def test_exported_labels_are_scored_on_a_pool(pool_file, tmp_path, capsys):
     assert main(["reward-bench", "score", str(path), "--pool", str(pool_file)]) == 0
     printed = capsys.readouterr().out
     assert printed.startswith("    8 answers,") and "wrong inferred 0.000" in printed
+    for task, code in (("cartpole_swingup", 0), ("dmc:walker_walk", 2)):  # spelled otherwise
+        lines[0]["task"] = task
+        path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+        assert main(["reward-bench", "score", str(path), "--pool", str(pool_file)]) == code
+    assert "was recorded on dmc:walker_walk, not dmc:cartpole_swingup" in capsys.readouterr().err
 
 
 def test_the_grid_has_an_augment_axis_that_re_checks_under_a_noisy_teacher(pool_file, tmp_path):

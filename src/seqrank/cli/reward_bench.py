@@ -19,6 +19,7 @@ from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
 
 if TYPE_CHECKING:
+    from seqrank.feedback.replay import ReplaySource
     from seqrank.training.launch import Started
 
 SCHEMES = [s.value for s in SchemeName]
@@ -327,6 +328,15 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
+def _check_recorded_task(source: ReplaySource, task: str) -> None:
+    """Labels are scored on a pool of the task they were recorded on (any spelling of it)."""
+    from seqrank.envs import canonical_task
+
+    recorded = source.labels.header.get("task")
+    if recorded is not None and canonical_task(recorded) != canonical_task(task):
+        raise ValueError(f"label file {source.source} was recorded on {recorded}, not {task}")
+
+
 def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.feedback.replay import ReplaySource
     from seqrank.rewardbench.bench import BenchSettings, Cell, run_cell
@@ -335,6 +345,7 @@ def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
     try:  # the input's checks; scoring itself is the code's (a fault is a traceback)
         pool = load_pool(args.pool)
         source = ReplaySource.from_file(args.labels)
+        _check_recorded_task(source, pool.task)
         source.check_compatible(pool.task, pool.obs.shape[2], pool.action.shape[2])
         # one budget per recorded session, so every session's labels are scored
         sizes = _session_sizes(source)

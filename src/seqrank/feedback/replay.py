@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from seqrank.envs import canonical_task
 from seqrank.episodes import Segments
 from seqrank.feedback.label_file import LabelFile, read_label_file
 from seqrank.feedback.schemes import SessionRecord
@@ -51,9 +50,9 @@ class ReplaySource:
         return session < len(self.sessions)
 
     def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
-        recorded = self.labels.header.get("task")
-        if recorded is not None and canonical_task(recorded) != canonical_task(task):
-            raise ValueError(f"label file {self.source} was recorded on {recorded}, not {task}")
+        """The file's segments fit the task's features. Whether it was recorded on this
+        task is for the layers that know the tasks' names (`config_rules.take_recorded`,
+        `check_recorded_task`): feedback stays below the environments."""
         width = len(next(iter(self.labels.segments.values()))["features"][0])
         if width != obs_dim + act_dim:
             raise ValueError(

@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from seqrank.choices import parse_choice
+from seqrank.errors import parse_choice
 from seqrank.feedback.checking import Recheck, confirmed_answer
 from seqrank.feedback.crowd_record import CrowdRecord
 from seqrank.types import Answer, AnsweredQuestion, Question

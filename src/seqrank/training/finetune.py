@@ -13,17 +13,18 @@ with the part's probabilities (all random for the lowest skill, none for the hig
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
 
+from seqrank.agents.protocol import Agent
+from seqrank.buffer import ReplayBuffer
+from seqrank.envs import SimEnv
 from seqrank.envs.recorder import EpisodeRecorder
-from seqrank.episodes import Episode
+from seqrank.episodes import Episode, EpisodeStore
+from seqrank.reward.model import RewardModel
 from seqrank.training.state import episode_seed
-
-if TYPE_CHECKING:
-    from seqrank.training.trainer import Trainer
 
 # supplementary Table 3 (cheetah_run from real human feedback); 30-frame clips as the
 # study's instructions say; no warm-up or pre-training: the policy is trained already
@@ -50,19 +51,26 @@ PARTS: dict[str, tuple[float, ...]] = {
 }
 
 
-def start_from(trainer: Trainer, state: dict[str, Any]) -> None:
+def start_from(
+    state: dict[str, Any],
+    agent: Agent,
+    reward_model: RewardModel,
+    replay: ReplayBuffer,
+    episodes: EpisodeStore,
+) -> None:
     """The saved run's agent, reward model, replay buffer and episodes (its checkpoint
-    `state`); counters, random streams and labels start afresh."""
-    trainer.agent.load_state_dict(state["agent"])
-    trainer.reward_model.load_state_dict(state["reward_model"])
-    trainer.replay.load_state_dict(state["replay"])
-    trainer.episodes.load_state_dict(state["episodes"])
+    `state`) loaded into a new run's; counters, random streams and labels start afresh."""
+    agent.load_state_dict(state["agent"])
+    reward_model.load_state_dict(state["reward_model"])
+    replay.load_state_dict(state["replay"])
+    episodes.load_state_dict(state["episodes"])
 
 
-def play_episodes(trainer: Trainer, random_share: tuple[float, ...], seed: int) -> list[Episode]:
+def play_episodes(
+    env: SimEnv, agent: Agent, random_share: tuple[float, ...], seed: int
+) -> list[Episode]:
     """One episode per value: the current policy (stochastic), each action replaced by a
     uniform random one with that probability; physics states kept for the clips."""
-    env, agent = trainer.env, trainer.agent
     rng = np.random.default_rng(seed)
     generator = torch.Generator().manual_seed(seed)
     episodes = []
@@ -84,10 +92,17 @@ def play_episodes(trainer: Trainer, random_share: tuple[float, ...], seed: int) 
     return episodes
 
 
-def refill_for_part(trainer: Trainer, parts: tuple[str, ...], session: int) -> None:
+def refill_for_part(
+    env: SimEnv,
+    agent: Agent,
+    episodes: EpisodeStore,
+    run_seed: int,
+    parts: tuple[str, ...],
+    session: int,
+) -> None:
     """Before session `session`: the episodes of its part (the last part for later ones)."""
     part = parts[min(session, len(parts) - 1)]
-    seed = episode_seed(trainer.config.seed, 3, session)
-    trainer.episodes.episodes.clear()
-    for episode in play_episodes(trainer, PARTS[part], seed):
-        trainer.episodes.add(episode)
+    seed = episode_seed(run_seed, 3, session)
+    episodes.episodes.clear()
+    for episode in play_episodes(env, agent, PARTS[part], seed):
+        episodes.add(episode)

@@ -93,7 +93,7 @@ class Trainer:
         self.stop_requested = threading.Event()
         self._assemble_phases(wait_for_feedback)
         if self.start_state is not None:  # (the run's own checkpoint, if any, comes after)
-            start_from(self, self.start_state)
+            start_from(self.start_state, self.agent, self.reward_model, self.replay, self.episodes)
             self.start_state = None  # its replay buffer is large
 
     def _assemble_phases(self, wait_for_feedback: bool) -> None:
@@ -131,7 +131,9 @@ class Trainer:
         )
         study_parts = tuple(p for p in config.parts.split(",") if p)
         if study_parts:  # before each session: episodes of the study part's skill levels
-            self.sessions.before_session = lambda k: refill_for_part(self, study_parts, k)
+            self.sessions.before_session = lambda k: refill_for_part(
+                self.env, self.agent, self.episodes, config.seed, study_parts, k
+            )
         self.reward = self._reward_learning()
         parts = UpdateParts(
             self.agent,
