@@ -60,6 +60,37 @@ CHOICES: dict[str, type[Any]] = {
 
 @dataclass(frozen=True)
 class TrainConfig:
+    """Every setting of a run: the options of `seqrank train`, its config.json and presets.
+
+    Each field is the `seqrank train` option of the same name with - for _; `seqrank train
+    --help` gives each one's meaning and default. Make one with `make_config` (Table 2, the
+    size preset, validation); `TrainConfig(...)` itself checks only the choices.
+
+    Attributes:
+        task: as `--task` takes it: walker_walk, dmc:..., metaworld:..., block:place,
+            gym:ID or module.path:factory.
+        scheme: how a session asks: pairwise, sequential, root or ranked.
+        teacher: who answers: a scripted preset with B-Pref knobs (oracle, mistake, ...),
+            replay:FILE, human, or a crowd (crowd:oracle+mistake).
+        reward: what the agent learns from: learned (the method), true or none (baselines).
+        backbone: pebble (SAC) or mrn (MRN's bi-level reward learning).
+        seed: seeds every random stream of the run (episodes, agent, sessions).
+        steps: environment steps of the run.
+        max_feedback: the run's budget of questions.
+        reward_batch: questions per session.
+        feedback_frequency: steps between sessions.
+        augment: full (the paper's closure) or checked (noise-aware, see `recheck`).
+        selection: which segments a session compares: uniform, disagreement or entropy.
+        reward_learner: plain (Bradley-Terry, PEBBLE's), surf or rime.
+        device: auto (CUDA when there is one), cpu or cuda.
+
+    Example:
+        >>> import seqrank
+        >>> config = seqrank.make_config("walker_walk", teacher="mistake", augment="checked")
+        >>> config.sessions, config.recheck.gain, config.as_dict()["teacher"]
+        (5, 1, 'mistake')
+    """
+
     task: str = "walker_walk"
     scheme: SchemeName = SchemeName.SEQUENTIAL
     teacher: str = "oracle"  # a `parse_teacher` value: preset[,knob=value...], replay:FILE, human
@@ -161,6 +192,7 @@ class TrainConfig:
 
     @property
     def teacher_spec(self) -> TeacherSpec:
+        """The parsed `teacher`."""
         return parse_teacher(self.teacher)
 
     @property
@@ -173,6 +205,7 @@ class TrainConfig:
 
     @property
     def sessions(self) -> int:
+        """Feedback sessions of the run: max_feedback / reward_batch, rounded up."""
         return math.ceil(self.max_feedback / self.reward_batch)
 
     @property
@@ -184,9 +217,11 @@ class TrainConfig:
 
     @property
     def first_session_step(self) -> int:
+        """The step of the first session: after the seed steps and pre-training."""
         return self.seed_steps + self.unsup_steps
 
     def as_dict(self) -> dict[str, Any]:
+        """The fields as a dict (config.json's content)."""
         return asdict(self)
 
 
