@@ -1,7 +1,7 @@
 """Every public name of `import seqrank`, and `seqrank.sb3.PreferenceFeedback`, is documented
 for the site's Python API page (docs/reference/api.md renders the docstrings): a Google-style
 docstring with `Args:` for what it takes, `Attributes:` for a dataclass, `Returns:` for what
-it returns and an `Example:` whose doctest runs as written."""
+it returns and an `Examples:` section whose doctests run as written."""
 
 from __future__ import annotations
 
@@ -60,9 +60,9 @@ def needed_sections(value: Any) -> list[str]:
 def problems(name: str, value: Any) -> list[str]:
     """What the docstring of `value` lacks, as `name: what`."""
     doc = inspect.getdoc(value) or ""
-    missing = [f"{name}: no {s}" for s in ["Example:", *needed_sections(value)] if s not in doc]
-    if "Example:" in doc and ">>> " not in doc.split("Example:", 1)[1]:
-        missing.append(f"{name}: an Example without a >>> line")
+    missing = [f"{name}: no {s}" for s in ["Examples:", *needed_sections(value)] if s not in doc]
+    if "Examples:" in doc and ">>> " not in doc.split("Examples:", 1)[1]:
+        missing.append(f"{name}: an Examples section without a >>> line")
     return missing
 
 
@@ -90,7 +90,7 @@ def test_every_public_name_has_a_docstring_with_its_arguments_and_an_example():
 def test_the_values_are_documented_in_the_module_docstring():
     doc = seqrank.__doc__ or ""
     assert all(f"`{value}`" in doc for value in VALUES), doc
-    assert "Example:" in doc and ">>> " in doc
+    assert "Examples:" in doc and ">>> " in doc
 
 
 @pytest.mark.parametrize("name", ["seqrank", *NAMES, SB3])

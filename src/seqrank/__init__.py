@@ -19,7 +19,7 @@ Names are loaded on first use, so `import seqrank` stays light (no torch). It re
 seqrank's tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`,
 `seqrank.registration`).
 
-Example:
+Examples:
     >>> import seqrank
     >>> seqrank.SCHEMES
     ('pairwise', 'sequential', 'root', 'ranked')

@@ -62,7 +62,7 @@ def run_scheme(
             (the ids drawn), `vouched` (answers the `recheck`'s model agreed with) and
             `asked`.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> value = [3.0, 1.0, 2.0, 5.0, 4.0]  # this teacher prefers the larger value
         >>> def ask(first, second):
@@ -99,7 +99,7 @@ def close_preferences(
     Returns:
         An `Augmentation`: `pairs` (`LabelledPair`s, asked and `inferred`) and `stats`.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> first = lambda a, b: seqrank.Answer.FIRST  # each defender beats its challenger
         >>> record = seqrank.run_scheme("sequential", pool_size=5, budget=4, ask=first)
@@ -127,7 +127,7 @@ def make_config(task: str | None = None, scale: str = "small", **settings: Any) 
     Returns:
         The frozen `TrainConfig`.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> config = seqrank.make_config("walker_walk", scheme="root", steps=60_000)
         >>> print(config.scheme, config.steps, config.hidden)  # hidden: the small preset's
@@ -152,7 +152,7 @@ class Segment:
         rewards: (steps,) the true per-step reward (a judge that reads it is a script).
         obs_dim: where `features` splits into `observations` and `actions`.
 
-    Example:
+    Examples:
         >>> import numpy as np, seqrank
         >>> segment = seqrank.Segment(np.zeros((50, 4)), rewards=np.ones(50), obs_dim=3)
         >>> segment.observations.shape, segment.actions.shape, float(segment.rewards.sum())
@@ -187,7 +187,7 @@ class JudgeSource:
         obs_dim: the task's observation size (`make_env(task).obs_dim`); a run on a task
             of another size is refused before it starts.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> def judge(first, second):  # the larger true return wins, as a script would
         ...     better = first.rewards.sum() > second.rewards.sum()
@@ -254,7 +254,7 @@ def train(
         The summary (summary.json): final and best evaluation return, sessions, questions
             asked, answered and inferred, `eval_curve`, wall time, ...
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> config = seqrank.make_config("walker_walk", scheme="root", steps=60_000)
         >>> summary = seqrank.train(config, "seqrank-out/runs/mine")  # doctest: +SKIP
@@ -291,7 +291,7 @@ class Run:
             feedback (a session) or eval.
         summary: summary.json (what `train` returned); None while unfinished.
 
-    Example:
+    Examples:
         >>> from pathlib import Path
         >>> import seqrank
         >>> rows = [{"step": 10_000, "kind": "eval", "eval_return": 31.5}]
@@ -331,7 +331,7 @@ def load_run(path: Path | str) -> Run:
         A `Run`: `config`, `metrics`, `summary`, `evaluations()`, `environment()` and
             `policy()`, the agent of its last checkpoint.
 
-    Example:
+    Examples:
         >>> import seqrank, torch
         >>> config = seqrank.make_config("gym:Pendulum-v1", reward="true", steps=200,
         ...     seed_steps=100, eval_every=200, eval_episodes=1, hidden=32, batch=32)

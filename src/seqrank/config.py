@@ -62,9 +62,10 @@ CHOICES: dict[str, type[Any]] = {
 class TrainConfig:
     """Every setting of a run: the options of `seqrank train`, its config.json and presets.
 
-    Each field is the `seqrank train` option of the same name with - for _; `seqrank train
-    --help` gives each one's meaning and default. Make one with `make_config` (Table 2, the
-    size preset, validation); `TrainConfig(...)` itself checks only the choices.
+    Each field is the `seqrank train` option of the same name with - for _, and
+    `seqrank train --help` gives each one's meaning and default. Make one with
+    `make_config` (Table 2, the size preset, validation); `TrainConfig(...)` itself checks
+    only the choices and the teacher.
 
     Attributes:
         task: as `--task` takes it: walker_walk, dmc:..., metaworld:..., block:place,
@@ -84,7 +85,7 @@ class TrainConfig:
         reward_learner: plain (Bradley-Terry, PEBBLE's), surf or rime.
         device: auto (CUDA when there is one), cpu or cuda.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> config = seqrank.make_config("walker_walk", teacher="mistake", augment="checked")
         >>> config.sessions, config.recheck.gain, config.as_dict()["teacher"]

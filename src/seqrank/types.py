@@ -22,7 +22,7 @@ class Answer(Enum):
     give labels 1.0 and 0.0, EQUAL 0.5 (never chained by transitivity), and SKIP none (the
     question still spends budget).
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> [answer.label for answer in seqrank.Answer]
         [1.0, 0.0, 0.5, None]

@@ -107,7 +107,7 @@ def make_env(name: str, seed: int = 0) -> SimEnv:
     Returns:
         The environment, a `SimEnv`.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> env = seqrank.make_env("dmc:cartpole_swingup")
         >>> env.obs_dim, env.act_dim, env.episode_length

@@ -59,7 +59,7 @@ class Recheck:
             answer it agrees with is not asked again of a teacher who never contradicted
             themselves, and lands in `SessionRecord.vouched`; None (default): no model.
 
-    Example:
+    Examples:
         >>> import seqrank
         >>> value = [3.0, 1.0, 2.0, 5.0, 4.0, 0.5, 2.5]
         >>> def ask(first, second):

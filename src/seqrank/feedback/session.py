@@ -48,7 +48,7 @@ class SessionRequest:
             each pooled segment, to estimate the annotators' reliability.
         chains: asked as this many chains side by side (a crowd: one per person).
 
-    Example:
+    Examples:
         >>> import numpy as np, seqrank
         >>> from seqrank.episodes import Segments
         >>> from seqrank.feedback.schemes import uniform_choice
@@ -90,7 +90,7 @@ class FeedbackSource(Protocol):
     `seqrank.JudgeSource` are sources; `train(config, out, source=...)` takes your own. The
     run samples the pool, then augments and stores what the source returns, whoever it is.
 
-    Example:
+    Examples:
         >>> import numpy as np, seqrank
         >>> from seqrank.episodes import Segments
         >>> from seqrank.feedback.schemes import uniform_choice

@@ -40,11 +40,11 @@ from seqrank.training.trainer import check_episode_fits
 class PreferenceFeedback(BaseCallback):
     """Preferences for any Stable-Baselines3 agent: an SB3 callback that owns its env.
 
-    `PreferenceFeedback(env, scheme="root", ...)`, then `SAC("MlpPolicy", feedback.env)
-    .learn(steps, callback=feedback)`: sessions are asked when due, the reward model
-    learns from them and `feedback.env` gives the agent the learned reward (0 before the
-    first session); the true reward stays in each step's `info["true_reward"]`. Each
-    session's row goes to SB3's logger under seqrank's metric names.
+    Make the agent on `feedback.env` and pass `callback=feedback` to its `learn`: sessions
+    are asked when due, the reward model learns from them and `feedback.env` gives the
+    agent the learned reward (0 before the first session); the true reward stays in each
+    step's `info["true_reward"]`. Each session's row goes to SB3's logger under seqrank's
+    metric names.
 
     Args:
         env: a seqrank task name (`walker_walk`, `dmc:...`, `gym:ID`, ...), a
@@ -77,7 +77,7 @@ class PreferenceFeedback(BaseCallback):
         config: the resolved settings (a `TrainConfig`).
         metrics: each session's metric row so far.
 
-    Example:
+    Examples:
         >>> from seqrank.sb3 import PreferenceFeedback
         >>> from stable_baselines3 import SAC
         >>> feedback = PreferenceFeedback("gym:Pendulum-v1", scheme="root", steps=2_000,
@@ -152,7 +152,7 @@ class PreferenceFeedback(BaseCallback):
     def labels(self) -> LabelStore:
         """Every labelled pair so far, asked and inferred (`len` counts them).
 
-        Example:
+        Examples:
             >>> from seqrank.sb3 import PreferenceFeedback
             >>> len(PreferenceFeedback("gym:Pendulum-v1").labels)  # before any session
             0
@@ -173,7 +173,7 @@ class PreferenceFeedback(BaseCallback):
         Returns:
             (N,) rewards; 0 before the first session. ValueError unless a batch.
 
-        Example:
+        Examples:
             >>> import numpy as np
             >>> from seqrank.sb3 import PreferenceFeedback
             >>> feedback = PreferenceFeedback("gym:Pendulum-v1")
@@ -198,7 +198,7 @@ class PreferenceFeedback(BaseCallback):
             path: the folder (made if needed): settings.json, labels.jsonl (seqrank's
                 label format, for `--teacher replay:FILE`), metrics.jsonl, feedback.pt.
 
-        Example:
+        Examples:
             >>> import os
             >>> from seqrank.sb3 import PreferenceFeedback
             >>> PreferenceFeedback("gym:Pendulum-v1").save("my-run")
@@ -219,11 +219,11 @@ class PreferenceFeedback(BaseCallback):
                 be passed again for a source that is not a teacher value.
 
         Returns:
-            The feedback, with its labels, reward model, episodes and counters; give the
-                loaded SB3 model `env=feedback.env` and `learn(...,
-                reset_num_timesteps=False)`.
+            The feedback, with its labels, reward model, episodes and counters: load the
+                SB3 model with `env=feedback.env` and call its `learn` with
+                `reset_num_timesteps=False`.
 
-        Example:
+        Examples:
             >>> from seqrank.sb3 import PreferenceFeedback
             >>> PreferenceFeedback("gym:Pendulum-v1", scheme="ranked").save("my-run")
             >>> feedback = PreferenceFeedback.load("my-run")
