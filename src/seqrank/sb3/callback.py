@@ -60,8 +60,9 @@ class PreferenceFeedback(BaseCallback):
             `updates_after_reset` updates; None (default): on for SAC and TD3 only.
         n_envs: environments made of a task name (default 1); for your own environment
             pass a VecEnv of as many.
-        wait_for_feedback: False: a person answers sessions after the first while the
-            agent trains on; True (default): `learn` waits for each session's answers.
+        wait_for_feedback: True (default): `learn` waits for each session's answers;
+            False: sessions after the first are answered (by a person, say) in the
+            background while the agent trains on, and count once complete.
         page: the labelling page's `labelling.app.ServerOptions` (port, ...); None: its
             defaults.
         label_dir: with `teacher="human"`: the folder of the label database.
