@@ -9,8 +9,22 @@ The public Python API (documented in the README; `help(seqrank.<name>)`):
   `FeedbackSource` (the protocol a custom source implements), `SessionRequest`;
 - looking: `load_run`, `Run`, `make_env`.
 
-Names are loaded on first use, so `import seqrank` stays light. It registers seqrank's
-tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`, `seqrank.registration`).
+Two of the names are values:
+
+- `SCHEMES`: the comparison schemes' names, as `run_scheme` and `make_config(scheme=...)`
+  take them: pairwise (the baseline), sequential, root and ranked;
+- `__version__`: the package's version, as `seqrank --version` prints it.
+
+Names are loaded on first use, so `import seqrank` stays light (no torch). It registers
+seqrank's tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`,
+`seqrank.registration`).
+
+Examples:
+    >>> import seqrank
+    >>> seqrank.SCHEMES
+    ('pairwise', 'sequential', 'root', 'ranked')
+    >>> print("seqrank", seqrank.__version__)
+    seqrank ...
 """
 
 from __future__ import annotations

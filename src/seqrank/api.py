@@ -36,12 +36,42 @@ def run_scheme(
     seed: int = 0,
     recheck: Recheck | None = None,
 ) -> SessionRecord:
-    """Ask `budget` questions about segments `0 .. pool_size - 1` the way `scheme`
-    (pairwise, sequential, root or ranked) asks them. `ask(first, second)` gets two
-    segment ids and returns an `Answer`; in schemes with a defender, `first` is it.
-    With a `Recheck` (noise-aware augmentation) answers that would imply many pairs are
-    asked again within the budget; for the same teacher's next session pass
-    `recheck.after(record.answers)`, which remembers whether they contradicted themselves."""
+    """Ask `budget` questions about segments `0 .. pool_size - 1` the way `scheme` asks them.
+
+    The scheme picks which two segments each question compares; `ask` answers, so a
+    person, another interface or a model can stand behind it. The budget counts the
+    questions asked, skips and re-checks included.
+
+    Args:
+        scheme: pairwise, sequential, root or ranked (`seqrank.SCHEMES`); ValueError
+            names the accepted ones.
+        pool_size: the segments to draw from; ValueError when the scheme needs more
+            (pairwise 2 x budget, sequential and root budget + 1, ranked 2).
+        budget: the questions to ask, at least 1.
+        ask: `ask(first, second)` gets two segment ids and returns an `Answer`; in
+            schemes with a defender (sequential, root), `first` is it.
+        seed: seeds which segments are drawn; the same seed and answers give the same
+            session.
+        recheck: noise-aware augmentation: an answer that would imply many pairs is
+            asked again within the budget and stands only if the repeats agree. For the
+            same teacher's next session pass `recheck.after(record.answers)`, which
+            remembers whether they contradicted themselves. None: answers stand as given.
+
+    Returns:
+        The `SessionRecord`: `answers` (questions and answers, in order), `segments`
+            (the ids drawn), `vouched` (answers the `recheck`'s model agreed with) and
+            `asked`.
+
+    Examples:
+        >>> import seqrank
+        >>> value = [3.0, 1.0, 2.0, 5.0, 4.0]  # this teacher prefers the larger value
+        >>> def ask(first, second):
+        ...     better = value[first] > value[second]
+        ...     return seqrank.Answer.FIRST if better else seqrank.Answer.SECOND
+        >>> record = seqrank.run_scheme("sequential", pool_size=5, budget=3, ask=ask)
+        >>> record.asked, len(record.segments)
+        (3, 4)
+    """
     rng = np.random.default_rng(seed)
     return get_scheme(scheme)(pool_size, budget, ask, rng, uniform_choice, recheck)
 
@@ -52,19 +82,57 @@ def close_preferences(
     path_unchecked: int | None = None,
     vouched: Collection[tuple[int, int]] = frozenset(),
 ) -> Augmentation:
-    """The answered pairs plus every pair they imply by transitivity (segments caught in a
-    preference cycle imply nothing; with `path_unchecked`, only along paths with at most
-    that many unconfirmed answers; `vouched` (winner, loser) answers count as confirmed,
-    as a session's `SessionRecord.vouched` gives them). With `true_returns` (per segment
-    id) the stats count the labels those returns contradict."""
+    """The answered pairs plus every pair they imply by transitivity.
+
+    If a beats b and b beats c, a beats c is inferred. Segments caught in a preference
+    cycle (a noisy teacher) imply nothing; equal answers are never chained.
+
+    Args:
+        answers: the answered questions, e.g. a `SessionRecord`'s `answers`.
+        true_returns: the true return of each segment id, to count the labels it
+            contradicts (`stats.asked_wrong`, `stats.inferred_wrong`); None: those are None.
+        path_unchecked: infer only along paths of at most this many unconfirmed answers
+            (an answer is confirmed by an agreeing re-check, `Recheck`); None: every path.
+        vouched: (winner, loser) answers that count as confirmed, as a session's
+            `SessionRecord.vouched` gives them.
+
+    Returns:
+        An `Augmentation`: `pairs` (`LabelledPair`s, asked and `inferred`) and `stats`.
+
+    Examples:
+        >>> import seqrank
+        >>> first = lambda a, b: seqrank.Answer.FIRST  # each defender beats its challenger
+        >>> record = seqrank.run_scheme("sequential", pool_size=5, budget=4, ask=first)
+        >>> closed = seqrank.close_preferences(record.answers)  # one chain of 5 segments
+        >>> closed.stats.answered, closed.stats.inferred, len(closed.pairs)
+        (4, 6, 10)
+    """
     return augment(answers, true_returns, path_unchecked, vouched)
 
 
 def make_config(task: str | None = None, scale: str = "small", **settings: Any) -> TrainConfig:
-    """A run's settings as `seqrank train --task TASK --scale SCALE --KEY VALUE ...` would
-    resolve them (no task: walker_walk, or a `teacher="replay:FILE"` file's task; the
-    settings the file fixes are taken from it); a ValueError names a bad value or an
-    unknown setting."""
+    """A run's settings, resolved as `seqrank train --task TASK --scale SCALE ...` would.
+
+    The suite's defaults, then the task's row of the paper's Table 2, then the size
+    preset, then `settings`; validated like the command line (a ValueError names a bad
+    value or an unknown setting, and what is accepted).
+
+    Args:
+        task: a task name as `--task` takes it; None: walker_walk, or the task of a
+            `teacher="replay:FILE"` file (the settings the file fixes are taken from it).
+        scale: small (the default: a preset sized for a 2-core CPU) or paper (the
+            paper's Table 2 sizes).
+        **settings: `TrainConfig` fields, the options of `seqrank train` with _ for -.
+
+    Returns:
+        The frozen `TrainConfig`.
+
+    Examples:
+        >>> import seqrank
+        >>> config = seqrank.make_config("walker_walk", scheme="root", steps=60_000)
+        >>> print(config.scheme, config.steps, config.hidden)  # hidden: the small preset's
+        root 60000 256
+    """
     known = {f.name for f in fields(TrainConfig)}
     unknown = sorted(set(settings) - known)
     if unknown:
@@ -77,7 +145,19 @@ def make_config(task: str | None = None, scale: str = "small", **settings: Any) 
 
 @dataclass(frozen=True)
 class Segment:
-    """One segment a judge compares: what the reward model sees and the simulator's truth."""
+    """One segment a judge compares: what the reward model sees and the simulator's truth.
+
+    Attributes:
+        features: (steps, obs_dim + act_dim): each step's observation, then its action.
+        rewards: (steps,) the true per-step reward (a judge that reads it is a script).
+        obs_dim: where `features` splits into `observations` and `actions`.
+
+    Examples:
+        >>> import numpy as np, seqrank
+        >>> segment = seqrank.Segment(np.zeros((50, 4)), rewards=np.ones(50), obs_dim=3)
+        >>> segment.observations.shape, segment.actions.shape, float(segment.rewards.sum())
+        ((50, 3), (50, 1), 50.0)
+    """
 
     features: np.ndarray  # (steps, obs_dim + act_dim): observation, then action
     rewards: np.ndarray  # (steps,) the true per-step reward
@@ -85,28 +165,53 @@ class Segment:
 
     @property
     def observations(self) -> np.ndarray:
+        """(steps, obs_dim): each step's observation."""
         return self.features[:, : self.obs_dim]
 
     @property
     def actions(self) -> np.ndarray:
+        """(steps, act_dim): each step's action."""
         return self.features[:, self.obs_dim :]
 
 
 class JudgeSource:
-    """A feedback source from a function `judge(first, second) -> Answer` that compares two
-    `Segment`s: a model that judges clips, a rule, another interface."""
+    """A feedback source from a function that compares two `Segment`s.
+
+    `train(config, out, source=JudgeSource(judge, obs_dim))` asks `judge` every question of
+    the run in place of the config's teacher: a model that judges clips, a rule, another
+    interface. The scheme, the augmentation and the labels stay the run's own.
+
+    Args:
+        judge: `judge(first, second)` returns an `Answer` (FIRST, SECOND, EQUAL or SKIP;
+            anything else stops the run with a TypeError).
+        obs_dim: the task's observation size (`make_env(task).obs_dim`); a run on a task
+            of another size is refused before it starts.
+
+    Examples:
+        >>> import seqrank
+        >>> def judge(first, second):  # the larger true return wins, as a script would
+        ...     better = first.rewards.sum() > second.rewards.sum()
+        ...     return seqrank.Answer.FIRST if better else seqrank.Answer.SECOND
+        >>> source = seqrank.JudgeSource(judge, seqrank.make_env("walker_walk").obs_dim)
+        >>> source.check_compatible("dmc:cartpole_swingup", obs_dim=5, act_dim=1)
+        Traceback (most recent call last):
+        ValueError: this judge reads 24 observations; dmc:cartpole_swingup has 5
+    """
 
     def __init__(self, judge: Callable[[Segment, Segment], Answer], obs_dim: int):
         self.judge, self.obs_dim = judge, obs_dim
 
     def has_session(self, session: int) -> bool:
+        """Always True: a function answers as many sessions as the run asks."""
         return True
 
     def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
+        """ValueError when `task`'s observations are not of the judge's size."""
         if obs_dim != self.obs_dim:
             raise ValueError(f"this judge reads {self.obs_dim} observations; {task} has {obs_dim}")
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
+        """The request's scheme over its pool, each question put to `judge`."""
         segments = request.segments
 
         def ask(first: int, second: int) -> Answer:
@@ -129,11 +234,33 @@ def train(
     source: FeedbackSource | None = None,
     progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
-    """Train a run into the new directory `out` (or continue it, when `out` holds a stopped
-    run of the same settings; a finished one is returned as it is) and return its summary.
-    `source` answers the questions in place of the config's teacher; `progress(step, live)`
-    is called every 100 steps. The directory is locked while it trains (ValueError when
-    another process holds it; a run of other settings is refused naming what differs)."""
+    """Train a run into the directory `out` and return its summary.
+
+    A new `out` starts the run; one that holds a stopped run of the same settings
+    continues it (a finished one is returned as it is; a run of other settings is refused,
+    naming what differs). The directory is locked while it trains: ValueError when another
+    process holds it. `load_run(out)` reads the result, its policy included.
+
+    Args:
+        config: the run's settings (`make_config`).
+        out: the run directory: config.json, metrics.jsonl, the labels, checkpoints and,
+            once finished, summary.json.
+        source: who answers the questions in place of the config's teacher: any
+            `FeedbackSource`, e.g. a `JudgeSource`; None: the config's teacher.
+        progress: called as `progress(step, live)` every 100 steps, `live` holding
+            eval_return, asked, inferred, sessions and sps (steps per second); None: none.
+
+    Returns:
+        The summary (summary.json): final and best evaluation return, sessions, questions
+            asked, answered and inferred, `eval_curve`, wall time, ...
+
+    Examples:
+        >>> import seqrank
+        >>> config = seqrank.make_config("walker_walk", scheme="root", steps=60_000)
+        >>> summary = seqrank.train(config, "seqrank-out/runs/mine")  # doctest: +SKIP
+        >>> config.sessions, config.max_feedback  # what the run will ask
+        (5, 100)
+    """
     from seqrank.training.launch import open_or_start
     from seqrank.training.runs import RunDir
     from seqrank.training.runtime import resolve_device
@@ -155,7 +282,23 @@ def train(
 
 @dataclass(frozen=True)
 class Run:
-    """A run directory, read: its settings, metric rows and summary (None while unfinished)."""
+    """A run directory, read (`load_run`): its settings, metric rows and summary.
+
+    Attributes:
+        path: the run directory.
+        config: its `TrainConfig` (config.json).
+        metrics: the rows of metrics.jsonl, each with a `step` and a `kind`: train,
+            feedback (a session) or eval.
+        summary: summary.json (what `train` returned); None while unfinished.
+
+    Examples:
+        >>> from pathlib import Path
+        >>> import seqrank
+        >>> rows = [{"step": 10_000, "kind": "eval", "eval_return": 31.5}]
+        >>> run = seqrank.Run(Path("mine"), seqrank.make_config(), rows, summary=None)
+        >>> run.evaluations()
+        [(10000, 31.5)]
+    """
 
     path: Path
     config: TrainConfig
@@ -167,6 +310,7 @@ class Run:
         return [(r["step"], r["eval_return"]) for r in self.metrics if r["kind"] == "eval"]
 
     def environment(self, seed: int | None = None) -> SimEnv:
+        """The run's task (`make_env`), seeded with `seed` (None: the run's seed)."""
         return make_env(self.config.task, self.config.seed if seed is None else seed)
 
     def policy(self) -> Policy:
@@ -178,7 +322,27 @@ class Run:
 
 
 def load_run(path: Path | str) -> Run:
-    """Read a run directory written by `seqrank train` or `train`."""
+    """Read a run directory written by `seqrank train` or `train`, finished or not.
+
+    Args:
+        path: the run directory.
+
+    Returns:
+        A `Run`: `config`, `metrics`, `summary`, `evaluations()`, `environment()` and
+            `policy()`, the agent of its last checkpoint.
+
+    Examples:
+        >>> import seqrank, torch
+        >>> config = seqrank.make_config("gym:Pendulum-v1", reward="true", steps=200,
+        ...     seed_steps=100, eval_every=200, eval_episodes=1, hidden=32, batch=32)
+        >>> _ = seqrank.train(config, "pendulum")  # a tiny run on the true reward
+        >>> run = seqrank.load_run("pendulum")
+        >>> run.config.task, [step for step, _ in run.evaluations()], run.summary["steps"]
+        ('gym:Pendulum-v1', [200], 200)
+        >>> obs, _ = run.environment().reset(seed=0)
+        >>> run.policy().act(obs, True, torch.Generator()).shape
+        (1,)
+    """
     from seqrank.training.runs import RunDir
 
     run = RunDir.open(Path(path))

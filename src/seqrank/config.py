@@ -26,6 +26,7 @@ from seqrank.choices import (
     check_path,
     parse_choice,
 )
+from seqrank.config_ranges import check_setting
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.checking import Recheck
@@ -59,6 +60,38 @@ CHOICES: dict[str, type[Any]] = {
 
 @dataclass(frozen=True)
 class TrainConfig:
+    """Every setting of a run: the options of `seqrank train`, its config.json and presets.
+
+    Each field is the `seqrank train` option of the same name with - for _, and
+    `seqrank train --help` gives each one's meaning and default. Make one with
+    `make_config` (Table 2, the size preset, validation); `TrainConfig(...)` itself checks
+    only the choices and the teacher.
+
+    Attributes:
+        task: as `--task` takes it: walker_walk, dmc:..., metaworld:..., block:place,
+            gym:ID or module.path:factory.
+        scheme: how a session asks: pairwise, sequential, root or ranked.
+        teacher: who answers: a scripted preset with B-Pref knobs (oracle, mistake, ...),
+            replay:FILE, human, or a crowd (crowd:oracle+mistake).
+        reward: what the agent learns from: learned (the method), true or none (baselines).
+        backbone: pebble (SAC) or mrn (MRN's bi-level reward learning).
+        seed: seeds every random stream of the run (episodes, agent, sessions).
+        steps: environment steps of the run.
+        max_feedback: the run's budget of questions.
+        reward_batch: questions per session.
+        feedback_frequency: steps between sessions.
+        augment: full (the paper's closure) or checked (noise-aware, see `recheck`).
+        selection: which segments a session compares: uniform, disagreement or entropy.
+        reward_learner: plain (Bradley-Terry, PEBBLE's), surf or rime.
+        device: auto (CUDA when there is one), cpu or cuda.
+
+    Examples:
+        >>> import seqrank
+        >>> config = seqrank.make_config("walker_walk", teacher="mistake", augment="checked")
+        >>> config.sessions, config.recheck.gain, config.as_dict()["teacher"]
+        (5, 1, 'mistake')
+    """
+
     task: str = "walker_walk"
     scheme: SchemeName = SchemeName.SEQUENTIAL
     teacher: str = "oracle"  # a `parse_teacher` value: preset[,knob=value...], replay:FILE, human
@@ -160,6 +193,7 @@ class TrainConfig:
 
     @property
     def teacher_spec(self) -> TeacherSpec:
+        """The parsed `teacher`."""
         return parse_teacher(self.teacher)
 
     @property
@@ -172,6 +206,7 @@ class TrainConfig:
 
     @property
     def sessions(self) -> int:
+        """Feedback sessions of the run: max_feedback / reward_batch, rounded up."""
         return math.ceil(self.max_feedback / self.reward_batch)
 
     @property
@@ -183,9 +218,11 @@ class TrainConfig:
 
     @property
     def first_session_step(self) -> int:
+        """The step of the first session: after the seed steps and pre-training."""
         return self.seed_steps + self.unsup_steps
 
     def as_dict(self) -> dict[str, Any]:
+        """The fields as a dict (config.json's content)."""
         return asdict(self)
 
 
@@ -276,69 +313,6 @@ def resolve_config(task: str | None, scale: str, overrides: dict[str, Any]) -> T
     return config
 
 
-# The numeric settings' ranges: whole numbers from 1 (from 0 for these) to MAX_COUNT,
-# numbers finite and > 0 (and at most 1 for these); the seed is what numpy, torch and the
-# simulators accept.
-MAX_COUNT = 2**31 - 1
-MAX_SEED = 2**32 - 1
-# settings whose size each feedback session allocates at once: a candidate pool this many
-# times what the scheme needs, and this many held-out segment pairs
-MAX = {
-    "seed": MAX_SEED,
-    "record_states": 1,
-    "oversample": 100,
-    "heldout_pairs": 100_000,
-    "surf_unlabelled_ratio": 1_000,  # unlabelled pairs per question asked, cut each fit
-    "surf_unlabelled_batch": 100,
-    "warm_start": 1,
-}
-FROM_ZERO = (
-    "seed",
-    "seed_steps",
-    "unsup_steps",
-    "updates_after_reset",
-    "record_states",
-    "path_unchecked",
-    "query_episodes",
-    "hybrid_replay",
-    "surf_crop",
-    "warm_start",
-    "overlap",
-)
-AT_MOST_ONE = (
-    "overlap",
-    "discount",
-    "tau",
-    "reward_stop_accuracy",
-    "hybrid_replay",
-    "surf_threshold",
-    "rime_tau_upper",
-)
-
-
-def check_setting(name: str, value: Any) -> None:
-    """SettingError unless the numeric setting `name` holds a value in its range."""
-    kind = str(next(f.type for f in fields(TrainConfig) if f.name == name))
-    if kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise SettingError(f"{setting(name)} must be a whole number, got {value!r}")
-        low = 0 if name in FROM_ZERO else 1
-        high = MAX.get(name, MAX_COUNT)
-        if not low <= value <= high:
-            raise SettingError(
-                f"{setting(name)} must be a whole number from {low} to {high}, got {value}"
-            )
-        return
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SettingError(f"{setting(name)} must be a number, got {value!r}")
-    unit, zero = name in AT_MOST_ONE, name in FROM_ZERO
-    too_low = value < 0 or (value == 0 and not zero)
-    if not math.isfinite(value) or too_low or (unit and value > 1):
-        opening = "[0" if zero else "(0"
-        accepted = f"a number in {opening}, 1]" if unit else "a finite number > 0"
-        raise SettingError(f"{setting(name)} must be {accepted}, got {value}")
-
-
 def config_differences(saved: TrainConfig, wanted: TrainConfig) -> list[str]:
     """The settings in which two configs differ, as `name saved -> wanted`."""
     return [
@@ -352,7 +326,7 @@ def validate(config: TrainConfig) -> None:
     """Raise SettingError naming the bad value and what is accepted."""
     for f in fields(config):
         if f.type in ("int", "float"):
-            check_setting(f.name, getattr(config, f.name))
+            check_setting(f.name, str(f.type), getattr(config, f.name))
     suite = canonical_task(config.task)[0]
     if suite == "block" and config.backbone != "pebble":
         raise SettingError(

@@ -16,7 +16,19 @@ LABEL_EQUAL = 0.5
 
 
 class Answer(Enum):
-    """A teacher's answer to "is segment `first` preferred to segment `second`?"."""
+    """A teacher's answer to "is segment `first` preferred to segment `second`?".
+
+    What every `ask(first, second)` returns and every label comes from: FIRST and SECOND
+    give labels 1.0 and 0.0, EQUAL 0.5 (never chained by transitivity), and SKIP none (the
+    question still spends budget).
+
+    Examples:
+        >>> import seqrank
+        >>> [answer.label for answer in seqrank.Answer]
+        [1.0, 0.0, 0.5, None]
+        >>> seqrank.Answer("second").flipped()
+        <Answer.FIRST: 'first'>
+    """
 
     FIRST = "first"
     SECOND = "second"

@@ -90,7 +90,32 @@ def _metaworld_tasks() -> set[str]:
 
 
 def make_env(name: str, seed: int = 0) -> SimEnv:
-    """The environment of task `name` (as `--task` accepts it), seeded with `seed`."""
+    """The environment of task `name` (as `--task` accepts it), seeded with `seed`.
+
+    A gymnasium.Env with flattened float32 observations and actions in [-1, 1], that
+    renders headless frames and saves and restores its physics state (the module says
+    more); `obs_dim` and `act_dim` give the sizes.
+
+    Args:
+        name: walker_walk or another DMControl `domain_task` (dmc:cartpole_swingup), a
+            Meta-World v3 task (door-open, metaworld:reach-v3), block:place, gym:ID (a
+            registered Gymnasium environment) or module.path:factory (your function
+            returning a gymnasium.Env); a SettingError (a ValueError) lists them.
+        seed: seeds the simulator (gym: and custom tasks are seeded at reset only); an
+            episode begun by `reset(seed=...)` depends on that seed alone.
+
+    Returns:
+        The environment, a `SimEnv`.
+
+    Examples:
+        >>> import seqrank
+        >>> env = seqrank.make_env("dmc:cartpole_swingup")
+        >>> env.obs_dim, env.act_dim, env.episode_length
+        (5, 1, 1000)
+        >>> obs, info = env.reset(seed=0)
+        >>> obs.shape, obs.dtype
+        ((5,), dtype('float32'))
+    """
     suite_name, task = canonical_task(name)
     if suite_name == "dmc":
         return DMCEnv(task, seed)

@@ -38,6 +38,41 @@ from seqrank.types import Answer, AnsweredQuestion
 
 @dataclass(frozen=True)
 class Recheck:
+    """Noise-aware augmentation's settings (`--augment checked`): which answers to ask again.
+
+    An answer whose transitive closure would add at least `gain` new pairs is asked again
+    within the session's budget and stands only if every repeat agrees (the module says
+    why). `run_scheme(..., recheck=Recheck())` applies it to a session, and
+    `TrainConfig.recheck` is a run's. ValueError unless 1 <= gain <= twice_gain and
+    path_unchecked >= 0.
+
+    Attributes:
+        gain: ask again an answer that would imply at least this many new pairs (default
+            1: any answer that implies a pair).
+        twice_gain: from this many (default 5), ask twice more once the teacher has
+            contradicted themselves.
+        path_unchecked: unconfirmed answers allowed on a path that a pair is inferred
+            along (default 1), for `close_preferences(..., path_unchecked=...)`.
+        contradicted: the teacher contradicted themselves in an earlier session of the
+            run (default False; `after` sets it).
+        model_returns: a fitted reward model's predicted return of each pooled segment: an
+            answer it agrees with is not asked again of a teacher who never contradicted
+            themselves, and lands in `SessionRecord.vouched`; None (default): no model.
+
+    Examples:
+        >>> import seqrank
+        >>> value = [3.0, 1.0, 2.0, 5.0, 4.0, 0.5, 2.5]
+        >>> def ask(first, second):
+        ...     better = value[first] > value[second]
+        ...     return seqrank.Answer.FIRST if better else seqrank.Answer.SECOND
+        >>> recheck = seqrank.Recheck()
+        >>> record = seqrank.run_scheme("sequential", 7, 6, ask, recheck=recheck)
+        >>> record.asked, len({(q.first, q.second) for q in record.answers})  # one repeat
+        (6, 5)
+        >>> recheck.after(record.answers).contradicted  # the repeat agreed
+        False
+    """
+
     gain: int = 1  # re-ask an answer that would imply at least this many new pairs
     # ... twice from this many on, once the teacher has contradicted themselves. Why 5 (not
     # 20, the first choice): a wrong win that one repeat confirms (two slips) puts the

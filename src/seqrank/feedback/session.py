@@ -27,7 +27,38 @@ from seqrank.types import Answer
 
 @dataclass(frozen=True)
 class SessionRequest:
-    """What a source needs to run session `session` of `questions` questions."""
+    """What a source needs to run session `session` of `questions` questions.
+
+    The run makes one per session and hands it to `FeedbackSource.ask_session`; most
+    sources answer through `run_scheme`, which asks the run's scheme over the pool.
+
+    Attributes:
+        scheme: the run's scheme (pairwise, sequential, root or ranked).
+        questions: the session's budget of questions.
+        session: the session's number in the run, from 0.
+        segments: the sampled candidate pool (`features`, true `rewards`, physics
+            `states` when recorded); the record's segment ids index into it.
+        chooser: picks each new segment from the pool (uniform, or by the reward
+            ensemble's disagreement or entropy).
+        rng: the session's random stream.
+        margin: the scripted teachers' equal-preference margin for this session.
+        recheck: noise-aware augmentation (`augment checked`); None: the paper's closure.
+        episodes: with `query_episodes`, the first and last episode the pool is cut from.
+        model_returns: a crowd's sessions, once the model is fit: its predicted return of
+            each pooled segment, to estimate the annotators' reliability.
+        chains: asked as this many chains side by side (a crowd: one per person).
+
+    Examples:
+        >>> import numpy as np, seqrank
+        >>> from seqrank.episodes import Segments
+        >>> from seqrank.feedback.schemes import uniform_choice
+        >>> pool = Segments(np.zeros((4, 10, 3)), np.zeros((4, 10)), [None] * 4, [None] * 4)
+        >>> rng = np.random.default_rng(0)
+        >>> request = seqrank.SessionRequest("root", 3, 0, pool, uniform_choice, rng, 0.0)
+        >>> record = request.run_scheme(lambda first, second: seqrank.Answer.EQUAL)
+        >>> record.scheme, record.asked
+        ('root', 3)
+    """
 
     scheme: str
     questions: int
@@ -53,20 +84,66 @@ class SessionRequest:
 
 
 class FeedbackSource(Protocol):
-    """Who answers a run's questions: anything with these three methods (a scripted
-    teacher, a person at the labelling page, replayed labels, `seqrank.JudgeSource`)."""
+    """Who answers a run's questions: anything with these three methods.
+
+    A scripted teacher, a person at the labelling page, replayed labels and
+    `seqrank.JudgeSource` are sources; `train(config, out, source=...)` takes your own. The
+    run samples the pool, then augments and stores what the source returns, whoever it is.
+
+    Examples:
+        >>> import numpy as np, seqrank
+        >>> from seqrank.episodes import Segments
+        >>> from seqrank.feedback.schemes import uniform_choice
+        >>> class Script:  # prefers the larger true return
+        ...     def has_session(self, session):
+        ...         return True
+        ...     def check_compatible(self, task, obs_dim, act_dim):
+        ...         pass
+        ...     def ask_session(self, request):
+        ...         returns = request.segments.rewards.sum(axis=1)
+        ...         def ask(first, second):
+        ...             better = returns[first] > returns[second]
+        ...             return seqrank.Answer.FIRST if better else seqrank.Answer.SECOND
+        ...         return request.segments, request.run_scheme(ask)
+        >>> rewards = np.arange(40.0).reshape(4, 10)
+        >>> pool = Segments(np.zeros((4, 10, 3)), rewards, [None] * 4, [None] * 4)
+        >>> rng = np.random.default_rng(0)
+        >>> request = seqrank.SessionRequest("root", 3, 0, pool, uniform_choice, rng, 0.0)
+        >>> segments, record = Script().ask_session(request)
+        >>> record.asked, seqrank.close_preferences(record.answers).stats.answered
+        (3, 3)
+        >>> seqrank.train(seqrank.make_config(), "mine", source=Script())  # doctest: +SKIP
+    """
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
-        """Answer a session; returns the pool the record's segment ids index into."""
+        """Answer a session.
+
+        Args:
+            request: the session's scheme, budget and pool (`SessionRequest`).
+
+        Returns:
+            The segments the record's ids index into (the request's pool, or a source's
+                own), and the session's `SessionRecord`.
+        """
         ...
 
     def has_session(self, session: int) -> bool:
-        """False when this source cannot give session `session` (recorded labels ran out)."""
+        """False when this source cannot give session `session` (recorded labels ran out).
+
+        Args:
+            session: the session's number in the run, from 0.
+        """
         ...
 
     def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
         """Raise ValueError when this source cannot serve a run on `task` (replayed labels
-        of another task, say)."""
+        of another task, say).
+
+        Args:
+            task: the run's task name.
+            obs_dim: its observation size.
+            act_dim: its action size.
+        """
         ...
 
 

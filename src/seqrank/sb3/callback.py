@@ -38,17 +38,57 @@ from seqrank.training.trainer import check_episode_fits
 
 
 class PreferenceFeedback(BaseCallback):
-    """Preferences for an SB3 agent: `PreferenceFeedback(env, scheme="root", ...)`, then
-    `SAC("MlpPolicy", feedback.env).learn(steps, callback=feedback)`.
+    """Preferences for any Stable-Baselines3 agent: an SB3 callback that owns its env.
 
-    `env`: a seqrank task name, a gymnasium.Env or an SB3 VecEnv. Keywords: the feedback
-    settings of `seqrank train` (same names and defaults: scheme, teacher, max_feedback,
-    reward_batch, feedback_frequency, segment_length, selection, augment, reward_learner,
-    query_episodes, reward_*, seed_steps, unsup_steps, ...; `teacher` may also be a
-    `FeedbackSource` or a judge function of two `Segment`s); `scale` picks the presets;
-    `pretrain` and `reset_critic` switch PEBBLE's pieces (None: on for SAC and TD3);
-    `n_envs` environments of a task name; with `teacher="human"`, the labelling page
-    serves from `label_dir` with `page` (`labelling.app.ServerOptions`)."""
+    Make the agent on `feedback.env` and pass `callback=feedback` to its `learn`: sessions
+    are asked when due, the reward model learns from them and `feedback.env` gives the
+    agent the learned reward (0 before the first session); the true reward stays in each
+    step's `info["true_reward"]`. Each session's row goes to SB3's logger under seqrank's
+    metric names.
+
+    Args:
+        env: a seqrank task name (`walker_walk`, `dmc:...`, `gym:ID`, ...), a
+            gymnasium.Env or an SB3 VecEnv. For a name or an Env, actions are rescaled to
+            [-1, 1] as seqrank's agents act; a VecEnv is used as it is.
+        teacher: who answers: a `seqrank train --teacher` value (default oracle; `human`:
+            a person at the labelling page), a `FeedbackSource`, or a judge function of
+            two `seqrank.Segment`s.
+        scale: the presets, small or paper; auto (default): paper on CUDA, else small.
+        pretrain: PEBBLE's state-entropy pre-training until the first session (after
+            `seed_steps + unsup_steps`); None (default): on for SAC and TD3 only.
+        reset_critic: a fresh critic after the first session, then
+            `updates_after_reset` updates; None (default): on for SAC and TD3 only.
+        n_envs: environments made of a task name (default 1); for your own environment
+            pass a VecEnv of as many.
+        wait_for_feedback: True (default): `learn` waits for each session's answers;
+            False: sessions after the first are answered (by a person, say) in the
+            background while the agent trains on, and count once complete.
+        page: the labelling page's `labelling.app.ServerOptions` (port, ...); None: its
+            defaults.
+        label_dir: with `teacher="human"`: the folder of the label database.
+        verbose: SB3's callback verbosity.
+        **settings: the feedback settings of `seqrank train`, same names and defaults
+            (scheme, max_feedback, reward_batch, feedback_frequency, segment_length,
+            selection, augment, reward_learner, query_episodes, reward_*, seed_steps,
+            unsup_steps, steps, device, ...); a bad value raises `seqrank train`'s
+            SettingError before anything is made, an agent setting names where it goes.
+
+    Attributes:
+        env: the VecEnv to give the agent, rewarded by the learned reward.
+        config: the resolved settings (a `TrainConfig`).
+        metrics: each session's metric row so far.
+
+    Examples:
+        >>> from seqrank.sb3 import PreferenceFeedback
+        >>> from stable_baselines3 import SAC
+        >>> feedback = PreferenceFeedback("gym:Pendulum-v1", scheme="root", steps=2_000,
+        ...     max_feedback=20, reward_batch=10, feedback_frequency=500, seed_steps=200,
+        ...     unsup_steps=300)
+        >>> model = SAC("MlpPolicy", feedback.env, seed=0)
+        >>> model.learn(2_000, callback=feedback)  # doctest: +SKIP
+        >>> feedback.env.num_envs, feedback.config.sessions, len(feedback.labels)
+        (1, 2, 0)
+    """
 
     def __init__(
         self,
@@ -111,17 +151,36 @@ class PreferenceFeedback(BaseCallback):
     # ---- the contract ---------------------------------------------------------------
     @property
     def labels(self) -> LabelStore:
-        """Every labelled pair so far, asked and inferred."""
+        """Every labelled pair so far, asked and inferred (`len` counts them).
+
+        Examples:
+            >>> from seqrank.sb3 import PreferenceFeedback
+            >>> len(PreferenceFeedback("gym:Pendulum-v1").labels)  # before any session
+            0
+        """
         return self.run.labels
 
     def reward(self, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """The learned reward (ensemble mean) of a batch, as the agent gets it: (N,).
+        """The learned reward (ensemble mean) of a batch, as the agent gets it.
 
-        `observations` (N, obs_dim) and `actions` (N, act_dim), or (N,) action indices of a
-        discrete space, as `feedback.env` takes them: in its action space, which for a
-        task name or a gymnasium.Env is [-1, 1] already. SB3's replay buffer keeps a Box
-        action scaled to [-1, 1]: for a VecEnv of another range, pass
-        `model.policy.unscale_action(actions)`."""
+        Args:
+            observations: (N, obs_dim).
+            actions: (N, act_dim), or (N,) action indices of a discrete space, as
+                `feedback.env` takes them: in its action space, which for a task name or a
+                gymnasium.Env is [-1, 1] already. SB3's replay buffer keeps a Box action
+                scaled to [-1, 1]: for a VecEnv of another range, pass
+                `model.policy.unscale_action(actions)`.
+
+        Returns:
+            (N,) rewards; 0 before the first session. ValueError unless a batch.
+
+        Examples:
+            >>> import numpy as np
+            >>> from seqrank.sb3 import PreferenceFeedback
+            >>> feedback = PreferenceFeedback("gym:Pendulum-v1")
+            >>> feedback.reward(np.zeros((2, 3)), np.zeros((2, 1)))  # no session yet
+            array([0., 0.], dtype=float32)
+        """
         obs = np.asarray(observations, np.float32)
         if obs.ndim != 2 or len(obs) != len(actions):
             raise ValueError(
@@ -131,15 +190,47 @@ class PreferenceFeedback(BaseCallback):
         return self.run.learned_reward(obs, canonical_actions(self.env.action_space, actions))
 
     def save(self, path: str | Path) -> None:
-        """Settings, labels (`labels.jsonl`), reward model, episodes, counters and random
-        streams into the folder `path`; with SB3's `model.save` and `save_replay_buffer`
-        a run continues from there (`PreferenceFeedback.load`)."""
+        """Save settings, labels, reward model, episodes, counters and random streams.
+
+        With SB3's `model.save` and `model.save_replay_buffer` a run continues from there
+        (`PreferenceFeedback.load`) as if uninterrupted when stopped at an episode end.
+
+        Args:
+            path: the folder (made if needed): settings.json, labels.jsonl (seqrank's
+                label format, for `--teacher replay:FILE`), metrics.jsonl, feedback.pt.
+
+        Examples:
+            >>> import os
+            >>> from seqrank.sb3 import PreferenceFeedback
+            >>> PreferenceFeedback("gym:Pendulum-v1").save("my-run")
+            >>> sorted(os.listdir("my-run"))
+            ['feedback.pt', 'labels.jsonl', 'metrics.jsonl', 'settings.json']
+        """
         saving.save(self, Path(path))
 
     @classmethod
     def load(cls, path: str | Path, env: Any = None, **options: Any) -> PreferenceFeedback:
-        """The feedback saved in `path`, for `env` (default: the saved task name); pass
-        `teacher=` again for a source that is not a teacher value."""
+        """The feedback saved in `path` by `save`, ready to train on.
+
+        Args:
+            path: the folder `save` wrote.
+            env: the environment, as the constructor takes it; None (default): the saved
+                task name (your own environment must be passed again).
+            **options: constructor keywords that replace the saved ones; `teacher=` must
+                be passed again for a source that is not a teacher value.
+
+        Returns:
+            The feedback, with its labels, reward model, episodes and counters: load the
+                SB3 model with `env=feedback.env` and call its `learn` with
+                `reset_num_timesteps=False`.
+
+        Examples:
+            >>> from seqrank.sb3 import PreferenceFeedback
+            >>> PreferenceFeedback("gym:Pendulum-v1", scheme="ranked").save("my-run")
+            >>> feedback = PreferenceFeedback.load("my-run")
+            >>> feedback.config.task, feedback.config.scheme
+            ('gym:Pendulum-v1', <SchemeName.RANKED: 'ranked'>)
+        """
         return saving.load(cls, Path(path), env, options)
 
     def close(self) -> None:
