@@ -14,9 +14,9 @@ from seqrank.choices import Backbone, Selection
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.teachers import parse_teacher
+from seqrank.train_config import TrainConfig
 
 if TYPE_CHECKING:
-    from seqrank.config import TrainConfig
     from seqrank.feedback.replay import Recorded
 
 

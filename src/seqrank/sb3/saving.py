@@ -6,26 +6,44 @@ labels in seqrank's label format) and `metrics.jsonl` (a row per session)."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, TypeVar
 
 import torch
 
 from seqrank.config import TrainConfig
 from seqrank.dirs import check_folder
 from seqrank.feedback.label_file import store_lines
+from seqrank.sb3.envs import SeededEpisodes
+from seqrank.sb3.run import FeedbackRun
 from seqrank.sb3.settings import FEEDBACK_SETTINGS
 from seqrank.sb3.streams import capture_rng
-from seqrank.sb3.tables import ReplayTable
-
-if TYPE_CHECKING:
-    from seqrank.sb3.callback import PreferenceFeedback
+from seqrank.sb3.tables import EpisodeTable, ReplayTable
 
 SETTINGS, STATE, LABELS, METRICS = "settings.json", "feedback.pt", "labels.jsonl", "metrics.jsonl"
 
 
-def save(feedback: PreferenceFeedback, folder: Path) -> None:
+class SavedFeedback(Protocol):
+    """What is saved of a `PreferenceFeedback` and restored into a new one (this module
+    sits below the callback, which it never imports)."""
+
+    given: TrainConfig
+    options: dict[str, Any]
+    from_task_name: bool
+    run: FeedbackRun
+    seeded: list[SeededEpisodes]
+    table: ReplayTable | EpisodeTable | None
+    metrics: list[dict[str, Any]]
+    pending: dict[str, Any]
+    page: Any
+
+
+Feedback = TypeVar("Feedback", bound=SavedFeedback)
+
+
+def save(feedback: SavedFeedback, folder: Path) -> None:
     check_folder(folder, "feedback folder")
     folder.mkdir(parents=True, exist_ok=True)
     run, model = feedback.run, getattr(feedback, "model", None)
@@ -49,8 +67,9 @@ def save(feedback: PreferenceFeedback, folder: Path) -> None:
 
 
 def load(
-    cls: type[PreferenceFeedback], folder: Path, env: Any, options: dict[str, Any]
-) -> PreferenceFeedback:
+    make: Callable[..., Feedback], folder: Path, env: Any, options: dict[str, Any]
+) -> Feedback:
+    """A saved feedback folder made anew by `make` (the class) and its state restored."""
     if not (folder / SETTINGS).is_file() or not (folder / STATE).is_file():
         raise ValueError(f"{folder} holds no saved feedback ({SETTINGS} and {STATE})")
     saved = json.loads((folder / SETTINGS).read_text())
@@ -71,7 +90,7 @@ def load(
     keywords = {k: saved[k] for k in ("pretrain", "reset_critic", "n_envs", "wait_for_feedback")}
     keywords.update(scale=config["scale"], **settings)
     keywords.update(options)
-    feedback = cls(config["task"] if env is None else env, **keywords)
+    feedback = make(config["task"] if env is None else env, **keywords)
     state = torch.load(folder / STATE, weights_only=False)
     feedback.run.load_state_dict(state)
     for wrapper, started in zip(feedback.seeded, state["episodes_started"], strict=False):
@@ -84,7 +103,7 @@ def load(
     return feedback
 
 
-def _custom_teacher(feedback: PreferenceFeedback) -> bool:
+def _custom_teacher(feedback: SavedFeedback) -> bool:
     from seqrank.feedback.session import ScriptedSource
 
     return (

@@ -4,13 +4,45 @@ on the path (reference or fast) that wrote it."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-if TYPE_CHECKING:
-    from seqrank.training.trainer import Trainer
+import numpy as np
+import torch
+
+from seqrank.agents.protocol import Agent
+from seqrank.buffer import ReplayBuffer
+from seqrank.episodes import EpisodeStore
+from seqrank.feedback.labels import LabelStore
+from seqrank.reward.model import RewardModel
+from seqrank.training.collect import Collector
+from seqrank.training.evaluator import Evaluations
+from seqrank.training.pretrain import EntropyPretraining
+from seqrank.training.reward_phase import RewardLearning
+from seqrank.training.runs import RunDir
+from seqrank.training.runtime import Runtime
+from seqrank.training.state import Counters
 
 
-def save_checkpoint(t: Trainer) -> None:
+class Checkpointed(Protocol):
+    """The parts of a run whose state a checkpoint holds (a `Trainer` has them)."""
+
+    counters: Counters
+    run_dir: RunDir
+    runtime: Runtime
+    agent: Agent
+    reward_model: RewardModel
+    reward: RewardLearning
+    replay: ReplayBuffer
+    episodes: EpisodeStore
+    labels: LabelStore
+    pretraining: EntropyPretraining
+    rng: np.random.Generator
+    generator: torch.Generator
+    collector: Collector
+    evaluations: Evaluations
+
+
+def save_checkpoint(t: Checkpointed) -> None:
     c = t.counters
     c.last_checkpoint_step = c.step
     t.run_dir.save_checkpoint(
@@ -33,7 +65,7 @@ def save_checkpoint(t: Trainer) -> None:
     )
 
 
-def load_checkpoint(t: Trainer, state: dict[str, Any]) -> None:
+def load_checkpoint(t: Checkpointed, state: dict[str, Any]) -> None:
     c = t.counters
     for name, value in state["counters"].items():
         if name != "extra":

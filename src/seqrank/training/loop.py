@@ -21,22 +21,41 @@ resumed run reproduces an uninterrupted one exactly on the same machine.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from seqrank.choices import RewardSignal
+from seqrank.config import TrainConfig
 from seqrank.training import metrics
+from seqrank.training.backbones import AgentUpdate
+from seqrank.training.checkpoint import Checkpointed
 from seqrank.training.critic_reset import reset_critic
 from seqrank.training.feedback_phase import feedback_step, learn_from_session
-from seqrank.training.sessions import AnsweredSession
+from seqrank.training.sessions import AnsweredSession, FeedbackSessions
 from seqrank.training.state import episode_seed
 
-if TYPE_CHECKING:
-    from seqrank.training.trainer import Trainer
+Progress = Callable[[int, dict[str, Any]], None]
+PhaseTimer = Callable[[str], contextlib.AbstractContextManager[None]]
+
+
+class Run(Checkpointed, Protocol):
+    """What the loop drives: a run's parts (a `Trainer` assembles them)."""
+
+    config: TrainConfig
+    sessions: FeedbackSessions
+    update: AgentUpdate
+    progress: Progress | None
+    phase_timer: PhaseTimer
+    stop_requested: threading.Event
+
+    def save_checkpoint(self) -> None: ...
 
 
 class RunStopped(Exception):
-    """Training stopped on request (`Trainer.stop_requested`) at an episode end, after a
+    """Training stopped on request (`Run.stop_requested`) at an episode end, after a
     checkpoint of that step: the run continues from there with `--resume`."""
 
     def __init__(self, step: int):
@@ -44,7 +63,7 @@ class RunStopped(Exception):
         self.step = step
 
 
-def run_loop(t: Trainer) -> dict[str, Any]:
+def run_loop(t: Run) -> dict[str, Any]:
     config, c = t.config, t.counters
     t.collector.start_episode(config.seed, c)
     tick = time.perf_counter()
@@ -78,7 +97,7 @@ def run_loop(t: Trainer) -> dict[str, Any]:
     return summary
 
 
-def _phase(t: Trainer) -> str:
+def _phase(t: Run) -> str:
     """The `phase` of a `train` row: pretrain, preference, true-reward or no-feedback."""
     if t.config.reward is not RewardSignal.LEARNED:
         first = t.config.first_session_step
@@ -87,7 +106,7 @@ def _phase(t: Trainer) -> str:
     return "pretrain" if t.counters.step < t.config.first_session_step else "preference"
 
 
-def _reward_ready(t: Trainer) -> bool:
+def _reward_ready(t: Run) -> bool:
     """Whether new transitions get the reward model's reward: after the first session, or
     from the end of pre-training for the no-feedback baseline (the true-reward baseline
     trains on the true reward column and never needs it)."""
@@ -97,7 +116,7 @@ def _reward_ready(t: Trainer) -> bool:
     return config.reward is RewardSignal.LEARNED and c.sessions > 0
 
 
-def learn(t: Trainer) -> None:
+def learn(t: Run) -> None:
     """What the agent and the reward model learn at this step."""
     config, c = t.config, t.counters
     if c.step < config.seed_steps:  # warm-up: random actions only
@@ -118,7 +137,7 @@ def learn(t: Trainer) -> None:
     t.update(c.step, feedback_open)
 
 
-def finish_session(t: Trainer, answered: AnsweredSession | None) -> None:
+def finish_session(t: Run, answered: AnsweredSession | None) -> None:
     """Augment and store the answers, train the reward, relabel, and after the first
     session reset the critic (nothing while a session is still being answered)."""
     if answered is None:
@@ -127,7 +146,7 @@ def finish_session(t: Trainer, answered: AnsweredSession | None) -> None:
         _learn_from_session(t, answered)
 
 
-def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
+def _learn_from_session(t: Run, answered: AnsweredSession) -> None:
     config = t.config
 
     def reset() -> None:
@@ -137,7 +156,7 @@ def _learn_from_session(t: Trainer, answered: AnsweredSession) -> None:
     t.run_dir.append_metrics(row)
 
 
-def evaluate(t: Trainer) -> None:
+def evaluate(t: Run) -> None:
     """Submit an evaluation of the current policy: scored now on the reference path, by
     the evaluation process (and logged `eval_every / 2` steps later) on the fast path."""
     config, c = t.config, t.counters

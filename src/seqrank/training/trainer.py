@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -38,14 +37,12 @@ from seqrank.training.feedback_parts import (
     make_sessions,
 )
 from seqrank.training.finetune import refill_for_part, start_from
+from seqrank.training.loop import PhaseTimer, Progress, run_loop
 from seqrank.training.pretrain import EntropyPretraining
 from seqrank.training.reward_phase import RewardLearning
 from seqrank.training.runs import RunDir
 from seqrank.training.runtime import Runtime, resolve_runtime
 from seqrank.training.state import Counters
-
-Progress = Callable[[int, dict[str, Any]], None]
-PhaseTimer = Callable[[str], contextlib.AbstractContextManager[None]]
 
 
 def _untimed(name: str) -> contextlib.AbstractContextManager[None]:
@@ -169,8 +166,6 @@ class Trainer:
         return InlineEvaluations(self.agent, self.eval_env, self.generator, shape)
 
     def train(self) -> dict[str, Any]:
-        from seqrank.training.loop import run_loop
-
         try:
             with matmul_precision(self.runtime.precision):
                 return run_loop(self)
