@@ -139,7 +139,7 @@ class TrainConfig:
     # a crowd of annotators (`--teacher crowd:...`; `seqrank.feedback.crowd`): the share of
     # answers also asked of a second person, and how the labels count in reward training
     overlap: float = 0.1
-    crowd_weighting: CrowdWeighting = CrowdWeighting.RELIABILITY
+    crowd_weighting: CrowdWeighting = CrowdWeighting.NONE  # weighting lost accuracy: results/crowd/
     annotators: str = ""  # a team at the labelling page (`label online`): name,name,...
     record_states: int = 0  # 1: keep physics states so labelled segments can be re-rendered
     # fine-tuning (the user study's first kind): a saved run's agent, reward model, replay

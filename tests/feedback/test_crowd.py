@@ -402,7 +402,7 @@ def test_a_bad_crowd_spec_names_what_is_wrong(value, message):
 # --- settings -----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("setting", [{"overlap": 0.5}, {"crowd_weighting": "none"}])
+@pytest.mark.parametrize("setting", [{"overlap": 0.5}, {"crowd_weighting": "reliability"}])
 def test_the_crowd_settings_are_refused_without_a_crowd(setting):
     (name,) = setting
     with pytest.raises(SettingError, match=rf"{name} act.* on a crowd's answers") as raised:

@@ -139,9 +139,9 @@ def _add_grid(actions: Any) -> None:
     grid.add_argument(
         "--weightings",
         type=names(["reliability", "none"], "weighting"),
-        default=["reliability"],
+        default=["none"],
         help="a crowd teacher's labels: reliability (each the probability that its member "
-        "is right), none (as answered), comma-separated (reliability)",
+        "is right), none (as answered), comma-separated (none)",
     )
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     _add_grid_sizes(grid)

@@ -1,0 +1,149 @@
+"""What `--path auto` picks on a CPU: the fast path in bf16 where that is measured to be
+faster on this machine and to learn the same, the reference path otherwise.
+
+bf16 matmuls are fast only where the processor does bf16 natively (AVX-512 BF16, AMX): on
+an AVX2-only processor they were measured 13x slower, so nothing is chosen by guess. The
+choice takes three facts:
+
+- the processor's flags name native bf16 (`/proc/cpuinfo`; elsewhere: no);
+- the run's networks are at least the sizes whose learning was checked side by side
+  (`results/speed/walker-bf16-cpu.toml`: 256 x 2, batch 256; smaller ones stay reference);
+- a measurement of both updates at the run's own shapes, on this machine, with this many
+  torch threads, finds the fast bf16 update at least `MIN_SPEEDUP` times faster. It takes
+  about a second, and is kept in `~/.cache/seqrank/cpu-paths.json` (`SEQRANK_CACHE` moves
+  it), so the choice is made once per machine and shape, and two runs on one machine
+  take the same path.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import torch
+
+NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
+MIN_SPEEDUP = 1.25
+CHECKED_HIDDEN, CHECKED_BATCH = 256, 256  # the learning check's sizes
+ROUNDS, UPDATES, WARMUP = 3, 20, 5
+
+
+@dataclass(frozen=True)
+class UpdateShape:
+    """The sizes that decide what a SAC update costs."""
+
+    obs_dim: int
+    act_dim: int
+    hidden: int
+    layers: int
+    batch: int
+
+    @property
+    def checked(self) -> bool:
+        return self.hidden >= CHECKED_HIDDEN and self.batch >= CHECKED_BATCH
+
+
+def cpu_flags() -> set[str]:
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return set()
+    line = next((line for line in text.splitlines() if line.startswith("flags")), "")
+    return set(line.partition(":")[2].split())
+
+
+def native_bf16() -> bool:
+    return bool(cpu_flags() & set(NATIVE_BF16_FLAGS))
+
+
+def prefers_fast_bf16(shape: UpdateShape) -> bool:
+    """Whether `--path auto` trains this shape on the fast path in bf16 on this CPU."""
+    if not shape.checked or not native_bf16():
+        return False
+    return measured_speedup(shape) >= MIN_SPEEDUP
+
+
+def measured_speedup(shape: UpdateShape) -> float:
+    """How many times faster the fast bf16 update is than the reference one (cached)."""
+    cache = _cache_file()
+    key = f"{_machine()}|torch {torch.__version__}|threads {torch.get_num_threads()}|{asdict(shape)}"
+    known = _read(cache)
+    if key not in known:
+        known[key] = _measure(shape)
+        _write(cache, {**_read(cache), key: known[key]})
+    return float(known[key])
+
+
+def _measure(shape: UpdateShape) -> float:
+    """Median of interleaved rounds; the global random state is left as it was."""
+    from seqrank.agents.sac import SAC, Execution, SACSettings
+    from seqrank.buffer import Batch
+
+    with torch.random.fork_rng():
+        settings = SACSettings(shape.hidden, shape.layers, 3e-4, 3e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+        cpu = torch.device("cpu")
+        agents = [SAC(shape.obs_dim, shape.act_dim, settings, cpu)]
+        agents.append(SAC(shape.obs_dim, shape.act_dim, settings, cpu, Execution(True, True, precision="bf16")))
+        generator = torch.Generator().manual_seed(0)
+        rows, obs, act = shape.batch, shape.obs_dim, shape.act_dim
+        batch = Batch(
+            torch.randn(rows, obs), torch.rand(rows, act) * 2 - 1, torch.randn(rows, 1),
+            torch.randn(rows, obs), torch.ones(rows, 1),
+        )  # fmt: skip
+        times: list[list[float]] = [[], []]
+        for _ in range(ROUNDS):
+            for agent, kept in zip(agents, times, strict=True):
+                for _ in range(WARMUP):
+                    agent.update(batch, generator)
+                started = time.perf_counter()
+                for _ in range(UPDATES):
+                    agent.update(batch, generator)
+                kept.append(time.perf_counter() - started)
+    reference, fast = (sorted(t)[len(t) // 2] for t in times)
+    return reference / fast
+
+
+def _machine() -> str:
+    model = next(
+        (
+            line.partition(":")[2].strip()
+            for line in _cpuinfo_lines()
+            if line.startswith("model name")
+        ),
+        platform.processor() or platform.machine(),
+    )
+    return model
+
+
+def _cpuinfo_lines() -> list[str]:
+    with contextlib.suppress(OSError):
+        return Path("/proc/cpuinfo").read_text().splitlines()
+    return []
+
+
+def _cache_file() -> Path:
+    root = os.environ.get("SEQRANK_CACHE") or Path.home() / ".cache" / "seqrank"
+    return Path(root) / "cpu-paths.json"
+
+
+def _read(path: Path) -> dict[str, float]:
+    try:
+        value = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return value if isinstance(value, dict) else {}
+
+
+def _write(path: Path, value: dict[str, float]) -> None:
+    """Atomically; a cache that cannot be written is measured again next time."""
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False) as handle:
+            json.dump(value, handle, indent=1)
+        os.replace(handle.name, path)
