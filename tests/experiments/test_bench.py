@@ -19,7 +19,7 @@ def bench(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench") / "bench-cpu"
     args = ["bench", "--task", "dmc:cartpole_swingup", "--device", "cpu", "--repeats", "2"]
     args += ["--updates", "5", "--reward-epochs", "1", "--loop-steps", "300", *TINY]
-    assert main([*args, "--out", str(out)]) == 0
+    assert main([*args, "--precisions", "fp32", "--out", str(out)]) == 0
     return out
 
 
@@ -43,6 +43,16 @@ def test_bench_writes_every_number_for_both_paths(bench):
     markdown = bench.with_suffix(".md").read_text()
     assert "| SAC update (µs) |" in markdown and "fast-fp32 / reference" in markdown
     assert "Command: `seqrank bench --task dmc:cartpole_swingup --device cpu" in markdown
+
+
+@pytest.mark.parametrize(("native", "expected"), [(True, ["fp32", "bf16"]), (False, ["fp32"])])
+def test_the_cpu_benchmark_times_bf16_where_the_processor_has_it(monkeypatch, native, expected):
+    from seqrank.cli import bench as bench_cli
+    from seqrank.training import cpu_path
+
+    monkeypatch.setattr(cpu_path, "native_bf16", lambda: native)
+    assert bench_cli._precisions(None, "cpu") == expected
+    assert bench_cli._precisions(None, "cuda") == ["tf32", "bf16", "fp32"]
 
 
 def test_projection_adds_steps_sessions_and_evaluations():

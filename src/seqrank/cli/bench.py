@@ -58,7 +58,8 @@ def add_parser(commands: Any) -> None:
     bench.add_argument(
         "--precisions",
         help="fast-path precisions, comma-separated "
-        f"({', '.join(FAST_PRECISIONS)}; default: tf32,bf16,fp32 on CUDA, fp32 on CPU)",
+        f"({', '.join(FAST_PRECISIONS)}; default: tf32,bf16,fp32 on CUDA; on a CPU fp32,bf16 "
+        "with native bf16, else fp32)",
     )
     bench.add_argument(
         "--set",
@@ -145,5 +146,9 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
 
 def _precisions(text: str | None, device_type: str) -> list[str]:
     if text is None:
-        return ["tf32", "bf16", "fp32"] if device_type == "cuda" else ["fp32"]
+        if device_type == "cuda":
+            return ["tf32", "bf16", "fp32"]
+        from seqrank.training.cpu_path import native_bf16
+
+        return ["fp32", "bf16"] if native_bf16() else ["fp32"]  # bf16 where it is native
     return split_names(text, FAST_PRECISIONS, "precision")

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     import torch
 
     from seqrank.training.launch import Started
+    from seqrank.training.runtime import Runtime
     from seqrank.training.stopping import StopSignal
 
 
@@ -142,30 +143,38 @@ def prepare_run(
     if wandb is not None:
         _check_wandb(wandb)
     if args.dry_run:
-        _check_with_env(config)
+        runtime = _check_with_env(config)
         _describe(config, path, new, err)
+        _say(err, f"  training path: {_way(runtime)}")
         return None
     started = start_new(path, config, str(new.device), trainer_cls, wandb)
-    err.print(f"run directory: {path} ({new.scale} preset, device {new.device})")
+    way = _way(started.trainer.runtime)
+    err.print(f"run directory: {path} ({new.scale} preset, device {new.device}, {way})")
     return started
 
 
-def _check_with_env(config: TrainConfig) -> None:
+def _way(runtime: Runtime) -> str:
+    """How the run computes, as the user reads it (`--path auto` resolved)."""
+    return f"{runtime.path} path, {runtime.precision}"
+
+
+def _check_with_env(config: TrainConfig) -> Runtime:
     """The checks a run makes once its environment is built (episode length, memory, a
-    replayed label file's features against the task's)."""
+    replayed label file's features against the task's); where and how it would train."""
     from seqrank.envs import make_env
     from seqrank.feedback.sources import make_source
     from seqrank.training.trainer import check_fits
 
     env = make_env(config.task, config.seed)
     try:
-        check_fits(config, env)
+        runtime = check_fits(config, env)
         if config.teacher_spec.kind == "replay":  # (`label online` brings its own source)
             make_source(config.teacher, config.overlap).check_compatible(
                 config.task, env.obs_dim, env.act_dim
             )
     finally:
         env.close()
+    return runtime
 
 
 def _refuse_new_settings(args: argparse.Namespace) -> None:

@@ -72,7 +72,9 @@ def prefers_fast_bf16(shape: UpdateShape) -> bool:
 def measured_speedup(shape: UpdateShape) -> float:
     """How many times faster the fast bf16 update is than the reference one (cached)."""
     cache = _cache_file()
-    key = f"{_machine()}|torch {torch.__version__}|threads {torch.get_num_threads()}|{asdict(shape)}"
+    key = (
+        f"{_machine()}|torch {torch.__version__}|threads {torch.get_num_threads()}|{asdict(shape)}"
+    )
     known = _read(cache)
     if key not in known:
         known[key] = _measure(shape)
@@ -89,7 +91,11 @@ def _measure(shape: UpdateShape) -> float:
         settings = SACSettings(shape.hidden, shape.layers, 3e-4, 3e-4, 1e-4, 0.1, 0.99, 0.005, 2)
         cpu = torch.device("cpu")
         agents = [SAC(shape.obs_dim, shape.act_dim, settings, cpu)]
-        agents.append(SAC(shape.obs_dim, shape.act_dim, settings, cpu, Execution(True, True, precision="bf16")))
+        agents.append(
+            SAC(
+                shape.obs_dim, shape.act_dim, settings, cpu, Execution(True, True, precision="bf16")
+            )
+        )
         generator = torch.Generator().manual_seed(0)
         rows, obs, act = shape.batch, shape.obs_dim, shape.act_dim
         batch = Batch(

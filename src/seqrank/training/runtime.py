@@ -1,9 +1,11 @@
 """Where and how a run computes: device, path and precision, with every "auto" resolved
 here and nowhere else.
 
-`auto` device: CUDA when there is one. `auto` path: the fast path on CUDA for SAC tasks,
-the reference path elsewhere. `auto` precision: TF32 for the fast path on CUDA, fp32
-everywhere else.
+`auto` device: CUDA when there is one. `auto` path: the fast path on CUDA for SAC tasks;
+on a CPU the fast path in bf16 where `cpu_path` finds it measured faster at the run's
+shapes and checked to learn the same, the reference path elsewhere. `auto` precision:
+TF32 for the fast path on CUDA, bf16 for the fast path that `--path auto` chose on a CPU,
+fp32 everywhere else.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from seqrank.choices import (
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
+from seqrank.training.cpu_path import UpdateShape, prefers_fast_bf16
 
 DEVICES = tuple(Device)
 PATHS = tuple(TrainingPath)
@@ -52,20 +55,35 @@ def resolve_device(name: str) -> torch.device:
 
 
 def resolve_runtime(
-    device: str | torch.device, path: str, precision: str, discrete: bool
+    device: str | torch.device,
+    path: str,
+    precision: str,
+    discrete: bool,
+    shape: UpdateShape | None = None,
 ) -> Runtime:
     """The run's device, path and precision; ValueError for a combination that does not
-    exist (a precision the path lacks, the fast path for a discrete task)."""
+    exist (a precision the path lacks, the fast path for a discrete task). With the run's
+    `shape`, `auto` on a CPU may choose the fast path in bf16 (`cpu_path`)."""
     where = device if isinstance(device, torch.device) else resolve_device(device)
     path = parse_choice(TrainingPath, path, "path")
     precision = parse_choice(Precision, precision, "precision")
     check_path(path, precision, discrete)
+    if _auto_cpu_bf16(where, path, precision, discrete, shape):
+        return Runtime(where, True, "bf16")
     fast = (where.type == "cuda" and not discrete) if path == "auto" else path == "fast"
     if not fast and precision not in ("auto", "fp32"):
         raise fast_path_needed(precision, discrete)
     if precision == "auto":
         precision = "tf32" if fast and where.type == "cuda" else "fp32"
     return Runtime(where, fast, precision)
+
+
+def _auto_cpu_bf16(
+    where: torch.device, path: str, precision: str, discrete: bool, shape: UpdateShape | None
+) -> bool:
+    if where.type != "cpu" or path != "auto" or precision != "auto" or discrete or not shape:
+        return False
+    return prefers_fast_bf16(shape)
 
 
 def config_runtime(config: TrainConfig, device: str | torch.device) -> Runtime:

@@ -25,6 +25,7 @@ from seqrank.training.agent_factory import make_agent
 from seqrank.training.backbones import BACKBONES, UpdateParts
 from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
 from seqrank.training.collect import Collector
+from seqrank.training.cpu_path import UpdateShape
 from seqrank.training.evaluator import (
     ActorShape,
     BackgroundEvaluations,
@@ -186,7 +187,8 @@ def check_fits(config: TrainConfig, env: SimEnv, kept: int = 0) -> Runtime:
     plus the run's) fits memory; returns where and how the run trains."""
     # a fine-tuning run starts with the saved run's episodes: its first session needs none
     check_episode_fits(config, env.episode_length, env.has_terminals or bool(config.start_from))
-    runtime = resolve_runtime(config.device, config.path, config.precision, env.discrete)
+    shape = UpdateShape(env.obs_dim, env.act_dim, config.hidden, config.layers, config.batch)
+    runtime = resolve_runtime(config.device, config.path, config.precision, env.discrete, shape)
     # the reference path keeps the buffer on the host and copies each batch over
     storage = runtime.device if runtime.fast else torch.device("cpu")
     _check_replay_fits(kept + config.steps, env.obs_dim, env.act_dim, storage)

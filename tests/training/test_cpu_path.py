@@ -1,0 +1,81 @@
+"""What `--path auto` picks on a CPU (`seqrank.training.cpu_path`): the fast path in bf16
+only with native bf16, at the sizes whose learning was checked, and when measured faster
+on this machine; the measurement is made once and kept."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+from seqrank.training import cpu_path
+from seqrank.training.cpu_path import UpdateShape
+from seqrank.training.runtime import resolve_runtime
+
+CHECKED = UpdateShape(24, 6, 256, 2, 256)  # the small preset on walker_walk
+SMALL = UpdateShape(24, 6, 64, 2, 64)
+CPU = torch.device("cpu")
+
+
+@pytest.fixture
+def machine(monkeypatch, tmp_path):
+    """A CPU whose flags and measured speed-up the test sets; a cache of its own."""
+    monkeypatch.setenv("SEQRANK_CACHE", str(tmp_path))
+    state = {"flags": {"avx512f", "avx512_bf16"}, "speedup": 2.0, "measured": 0}
+
+    def measure(shape):
+        state["measured"] += 1
+        return state["speedup"]
+
+    monkeypatch.setattr(cpu_path, "cpu_flags", lambda: state["flags"])
+    monkeypatch.setattr(cpu_path, "_measure", measure)
+    return state
+
+
+def runtime(shape, path="auto", precision="auto"):
+    return resolve_runtime(CPU, path, precision, discrete=False, shape=shape)
+
+
+def test_native_bf16_measured_faster_at_checked_sizes_takes_the_fast_path(machine):
+    chosen = runtime(CHECKED)
+    assert chosen.fast and chosen.precision == "bf16" and chosen.path == "fast"
+
+
+@pytest.mark.parametrize(
+    ("flags", "speedup", "shape"),
+    [
+        ({"avx2", "fma"}, 2.0, CHECKED),  # no native bf16: never by guess
+        ({"avx512_bf16"}, 1.1, CHECKED),  # native, but not measured faster enough
+        ({"amx_bf16"}, 2.0, SMALL),  # smaller than the sizes whose learning was checked
+    ],
+)
+def test_otherwise_auto_stays_on_the_reference_path(machine, flags, speedup, shape):
+    machine["flags"], machine["speedup"] = flags, speedup
+    chosen = runtime(shape)
+    assert not chosen.fast and chosen.precision == "fp32"
+
+
+def test_what_the_user_chose_is_never_overruled(machine):
+    assert not runtime(CHECKED, path="reference").fast
+    assert runtime(CHECKED, precision="fp32") == resolve_runtime(CPU, "auto", "fp32", False)
+    assert runtime(CHECKED, path="fast", precision="fp32").precision == "fp32"
+    assert not resolve_runtime(CPU, "auto", "auto", discrete=True, shape=CHECKED).fast
+    assert not runtime(None).fast  # no shape, nothing measured
+
+
+def test_the_measurement_is_made_once_per_machine_and_shape(machine, tmp_path):
+    runtime(CHECKED)
+    runtime(CHECKED)
+    assert machine["measured"] == 1
+    ((key, value),) = json.loads((tmp_path / "cpu-paths.json").read_text()).items()
+    assert value == 2.0 and "'hidden': 256" in key and "threads" in key
+    runtime(UpdateShape(24, 6, 256, 3, 256))
+    assert machine["measured"] == 2
+
+
+def test_a_real_measurement_leaves_the_global_random_state_alone():
+    before = torch.random.get_rng_state()
+    speedup = cpu_path._measure(UpdateShape(3, 1, 8, 1, 8))
+    assert speedup > 0
+    assert torch.equal(torch.random.get_rng_state(), before)
