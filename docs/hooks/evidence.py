@@ -26,3 +26,20 @@ def on_files(files: Files, config: Any) -> Files:
         uri = f"evidence/{relative.as_posix()}"
         files.append(File.generated(config, uri, abs_src_path=str(path)))
     return files
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
+    """A results README's page ends with the folder's plots it does not show itself."""
+    uri = page.file.src_uri
+    if not uri.startswith("evidence/") or not uri.endswith("README.md"):
+        return markdown
+    folder = (
+        Path(config["config_file_path"]).parent
+        / "results"
+        / Path(uri).parent.relative_to("evidence")
+    )
+    plots = [p.name for p in sorted(folder.glob("*.png")) if f"]({p.name})" not in markdown]
+    if not plots:
+        return markdown
+    shown = "\n\n".join(f"![{name}]({name})" for name in plots)
+    return f"{markdown.rstrip()}\n\n## Plots\n\n{shown}\n"
