@@ -209,10 +209,24 @@ def evidence_commands() -> list[str]:
     found = []
     for _, block in blocks("bash|", EVIDENCE):
         for line in block.replace("\\\n", " ").splitlines():
-            match = re.search(r"(?:^|\s)(?:-m )?seqrank (\w[^&|;>]*)", line)
+            match = re.search(r"(?:^|\s)(?:-m )?seqrank (\w.*)", line)
             if match and not line.lstrip().startswith("#"):
-                found.append("seqrank " + match.group(1).strip())
+                found.append("seqrank " + up_to_a_shell_operator(match.group(1)).strip())
     return found
+
+
+def up_to_a_shell_operator(line: str) -> str:
+    """The line before its first `;`, `&`, `|` or `>` outside quotes (a quoted teacher list
+    separates teachers with `;`)."""
+    quote = ""
+    for i, char in enumerate(line):
+        if quote:
+            quote = "" if char == quote else quote
+        elif char in "'\"":
+            quote = char
+        elif char in "&|;>":
+            return line[:i]
+    return line
 
 
 SHELL_VALUES = {"scheme": "root", "s": "root", "seed": "0"}
