@@ -1,7 +1,8 @@
 """seqrank: reinforcement learning from human preferences with sequential and root
 pairwise comparison and transitive label augmentation (SeqRank, NeurIPS 2023).
 
-The public Python API (documented in the README; `help(seqrank.<name>)`):
+The public Python API (documented on the site's Reference, Python API page, docs/reference/api.md;
+`help(seqrank.<name>)`):
 
 - asking: `run_scheme`, `close_preferences`, `Recheck` (noise-aware augmentation),
   `Answer`, `SCHEMES`;

@@ -1,4 +1,4 @@
-"""The Python API: what `import seqrank` offers (see the README's "Python API").
+"""The Python API: what `import seqrank` offers (docs/reference/api.md).
 
 - Ask: `run_scheme` runs a comparison scheme over your own `ask(first, second)` function,
   and `close_preferences` adds every label that transitivity implies.

@@ -71,7 +71,7 @@ class Augment(StrEnum):
 
 
 class RewardLearner(StrEnum):
-    """How the reward ensemble learns from the labelled pairs (README "Reward learners")."""
+    """How the reward ensemble learns from the labelled pairs (docs/concepts/reward-learners.md)."""
 
     PLAIN = "plain"  # Bradley-Terry on every labelled pair (PEBBLE)
     SURF = "surf"  # + confident pseudo-labels on unlabelled pairs, temporal cropping

@@ -155,7 +155,7 @@ class TrainConfig:
     reward_minibatch: int = 128
     reward_epochs: int = 50
     reward_stop_accuracy: float = 0.97
-    # reward learners beyond the paper (SURF, RIME): README "Reward learners"; the defaults
+    # reward learners beyond the paper (SURF, RIME): docs/concepts/reward-learners.md; the defaults
     # and their sources are in `SurfSettings` and `RimeSettings`
     reward_learner: RewardLearner = RewardLearner.PLAIN
     surf_threshold: float = SurfSettings.threshold

@@ -19,21 +19,21 @@ from seqrank.console_tables import progress_bar
 from seqrank.errors import UsageError
 
 FAST_PRECISIONS = [p for p in PRECISIONS if p != "auto"]
+ABOUT = (
+    "Run the reference path (host replay buffer, a host-to-device copy per batch, the reward "
+    "model asked per step, strict fp32, a host sync per update) and the fast path (device "
+    "buffer, no syncs, CUDA graphs, TF32/bf16) in one process, interleaved, and write "
+    "microseconds per SAC update and per reward epoch, loop steps per second, the projected "
+    "full-run time and the fast/reference ratios to OUT.json and OUT.md."
+)
 
 
 def add_parser(commands: Any) -> None:
     bench = commands.add_parser(
-        "bench",
-        help="time the reference and fast training paths side by side",
-        description="Run the reference path (host replay buffer, a host-to-device copy per "
-        "batch, the reward model asked per step, strict fp32, a host sync per update) and "
-        "the fast path (device buffer, no syncs, CUDA graphs, TF32/bf16) in one process, "
-        "interleaved, and write microseconds per SAC update and per reward epoch, loop steps "
-        "per second, the projected full-run time and the fast/reference ratios to "
-        "OUT.json and OUT.md.",
+        "bench", help="time the reference and fast training paths side by side", description=ABOUT
     )
-    bench.add_argument("--task", default="walker_walk")
-    bench.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    bench.add_argument("--task", default="walker_walk", help="the task whose shapes are timed")
+    bench.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="where")
     bench.add_argument(
         "--scale",
         choices=("auto", *SCALES),

@@ -74,21 +74,26 @@ def _add_offline(modes: Any) -> None:
     source = offline.add_mutually_exclusive_group(required=True)
     source.add_argument("--from", dest="policy_run", type=Path, help="a run directory to roll out")
     source.add_argument("--task", help="a task acted on at random, e.g. dmc:walker_walk")
-    offline.add_argument("--scheme", choices=tuple(SCHEMES), default="sequential")
+    offline.add_argument(
+        "--scheme", choices=tuple(SCHEMES), default="sequential", help="how questions are asked"
+    )
     offline.add_argument("--questions", type=positive, default=10, help="per session (10)")
     offline.add_argument("--sessions", type=positive, default=1, help="(1)")
     offline.add_argument(
         "--augment",
         choices=("full", "checked"),
         default="full",
-        help="checked: an answer that would imply many pairs is asked again (README "
-        "'Noise-aware augmentation'); a run replaying these labels chooses its own closure",
+        help="checked: an answer that would imply many pairs is asked again (documentation: "
+        "Concepts, 'Noise-aware augmentation'); a run replaying these labels chooses its own "
+        "closure",
     )
     offline.add_argument(
         "--segment-length", type=positive, help="steps (the task's: 50, block:place 30)"
     )
     offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
-    offline.add_argument("--seed", type=seed_number, default=0)
+    offline.add_argument(
+        "--seed", type=seed_number, default=0, help="seeds the rollouts and the segments drawn (0)"
+    )
     offline.add_argument(
         "--annotators",
         default="",

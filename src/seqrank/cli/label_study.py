@@ -30,8 +30,17 @@ def add_study(modes: Any) -> None:
         "satisfaction survey after each. Every `seqrank train` option applies to all runs.",
     )
     study.add_argument("--participant", required=True, help="participant id, e.g. p01")
-    study.add_argument("--study-dir", type=Path, default=Path("seqrank-out/study"))
-    study.add_argument("--methods", default=",".join(("pairwise", "sequential", "root")))
+    study.add_argument(
+        "--study-dir",
+        type=Path,
+        default=Path("seqrank-out/study"),
+        help="where every participant's runs and surveys are kept (seqrank-out/study)",
+    )
+    study.add_argument(
+        "--methods",
+        default=",".join(("pairwise", "sequential", "root")),
+        help="schemes compared, comma-separated (each participant gets a counterbalanced order)",
+    )
     study.add_argument(
         "--finetune",
         action="store_true",

@@ -22,10 +22,10 @@ def add_parser(commands: Any) -> None:
     export.add_argument(
         "directory", type=Path, help="a labelling directory (labels.sqlite) or a run directory"
     )
-    export.add_argument("-o", "--output", type=Path, required=True)
+    export.add_argument("-o", "--output", type=Path, required=True, help="the JSONL file to write")
     load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
-    load.add_argument("file", type=Path)
-    load.add_argument("directory", type=Path)
+    load.add_argument("file", type=Path, help="a JSONL file from `seqrank labels export`")
+    load.add_argument("directory", type=Path, help="the labelling directory to add them to")
     labels.set_defaults(handler=run)
 
 

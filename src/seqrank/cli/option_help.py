@@ -1,5 +1,5 @@
-"""What each `seqrank train` setting means, for `--help` (the README's option tables say
-more). Kept beside the parser so that a new TrainConfig field without a line here fails a
+"""What each `seqrank train` setting means, for `--help` (docs/reference/cli.md
+lists them all). Kept beside the parser so that a new TrainConfig field without a line here fails a
 test, not a user."""
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ MEANINGS = {
     "seed": "the run's seed; every episode is seeded from it",
     "steps": "environment steps of the whole run",
     "device": "auto, cpu, cuda",
-    "path": "reference, fast, or auto (fast on CUDA)",
+    "path": "reference, fast, or auto (fast on CUDA; on a CPU with native bf16 the fast path "
+    "in bf16 where measured faster)",
     "precision": "fp32, tf32, bf16 (fast path), or auto",
     "hidden": "SAC: units per hidden layer",
     "layers": "SAC: hidden layers",
@@ -57,7 +58,7 @@ MEANINGS = {
     "hybrid_episodes": "QPA: hybrid replay's recent window, in episodes",
     "record_states": "1: keep physics states, so labelled segments can be re-rendered",
     "start_from": "fine-tuning: a saved run directory to start from",
-    "parts": "fine-tuning: what the sessions' clips show (see the README)",
+    "parts": "fine-tuning: what the sessions' clips show (Guides, The user study)",
     "reward_ensemble": "reward model: ensemble members",
     "reward_hidden": "reward model: units per hidden layer",
     "reward_layers": "reward model: hidden layers",

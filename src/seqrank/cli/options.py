@@ -190,6 +190,6 @@ def add_run_options(parser: argparse.ArgumentParser, wandb: bool = True) -> None
             type=field_type(f),
             default=argparse.SUPPRESS,
             metavar=field_type(f).__name__.upper(),
-            help=f"{MEANINGS.get(f.name, '')} (default: {f.default} or the preset's)",
+            help=f"{MEANINGS.get(f.name, '')} (default: {f.default or 'none'} or the preset's)",
         )
     parser.set_defaults(setting_flags=setting_flags(parser))

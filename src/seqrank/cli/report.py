@@ -20,13 +20,15 @@ def add_parser(commands: Any) -> None:
         "report.json and PNG plots of the finished ones (unfinished runs are named and left "
         "out unless --include-unfinished).",
     )
-    report.add_argument("runs_dir", type=Path)
+    report.add_argument(
+        "runs_dir", type=Path, help="a folder holding run directories (at any depth)"
+    )
     report.add_argument("--out", type=Path, help="(default: RUNS_DIR/report)")
     report.add_argument(
         "--bootstrap", type=int_between(100, 1_000_000), default=2000, help="resamples (2000)"
     )
     report.add_argument("--seed", type=seed_number, default=0, help="bootstrap seed (0)")
-    report.add_argument("--no-plots", action="store_true")
+    report.add_argument("--no-plots", action="store_true", help="write the tables only")
     report.add_argument(
         "--include-unfinished",
         action="store_true",

@@ -189,7 +189,9 @@ def _add_score(actions: Any) -> None:
     score = actions.add_parser("score", help="score exported labels (JSONL) on a pool")
     score.add_argument("labels", type=Path, help="a label file from `seqrank labels export`")
     score.add_argument("--pool", type=Path, required=True, help="a pool of the same task")
-    score.add_argument("--seed", type=seed_number, default=0)
+    score.add_argument(
+        "--seed", type=seed_number, default=0, help="seeds the reward model's training (0)"
+    )
     score.set_defaults(handler=run_score)
 
 

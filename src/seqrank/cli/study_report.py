@@ -17,7 +17,7 @@ def add_parser(commands: Any) -> None:
         "study-report",
         help="satisfaction and reward per method over a study's participants, paired t-tests",
     )
-    report.add_argument("study_dir", type=Path)
+    report.add_argument("study_dir", type=Path, help="the --study-dir of `seqrank label study`")
     report.add_argument("--json", type=Path, help="also write the numbers as JSON here")
     report.set_defaults(handler=run)
 

@@ -24,10 +24,15 @@ def add_parser(commands: Any) -> None:
         description="Expand tasks x schemes x backbones x teachers x seeds x variants into "
         "`seqrank train` run directories under <out>/runs and run them. Finished runs are "
         "skipped, killed runs resume, failed runs are retried and then reported (exit 1). "
-        "The sweep file format is in the README.",
+        "The sweep file format is in the documentation (Guides, Sweeps).",
     )
     sweep.add_argument("spec", type=Path, help="the sweep file (TOML)")
-    sweep.add_argument("--engine", choices=("local", "ray"), default="local")
+    sweep.add_argument(
+        "--engine",
+        choices=("local", "ray"),
+        default="local",
+        help="local: worker processes on this machine; ray: a Ray cluster (local)",
+    )
     sweep.add_argument(
         "--workers",
         type=int_between(1, 1024),

@@ -49,7 +49,9 @@ def add_parser(commands: Any) -> None:
         help="failure probability of the Lemma 3/4 degree bounds (default: %(default)s)",
     )
     theory.add_argument("--seed", type=seed_number, default=0, help="simulation seed (default: 0)")
-    theory.add_argument("--format", choices=("table", "json"), default="table")
+    theory.add_argument(
+        "--format", choices=("table", "json"), default="table", help="printed as (table)"
+    )
     theory.set_defaults(handler=run)
 
 

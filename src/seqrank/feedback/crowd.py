@@ -1,6 +1,6 @@
 """A crowd answering one run: each session shared out as chains, one chain a person.
 
-The choices this module makes (issue 37; README "A team of annotators"):
+The choices this module makes (issue 37; docs/guides/team.md):
 - a session's questions are split evenly over its people, and its candidate pool into
   disjoint slices, one a chain: each person runs the session's scheme over their own
   slice, so a sequential, root or ranked chain stays with one person, and since the slices

@@ -18,7 +18,7 @@ of segments from held-out episodes:
 Every scheme of a seed sees the same random streams (common random numbers), so their
 differences are not sampling luck.
 
-A cell's `learner` (`RewardLearner`: plain, surf, rime; README "Reward learners") is how
+A cell's `learner` (`RewardLearner`: plain, surf, rime; docs/concepts/reward-learners.md) is how
 the ensemble learns from the labels, with its default settings; SURF's unlabelled pairs
 are cut from the training episodes. RIME's warm start has no place here: the benchmark
 has no pre-training phase, so every learner starts from a fresh model.

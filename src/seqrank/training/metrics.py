@@ -1,5 +1,5 @@
 """The rows a run writes to metrics.jsonl and summary.json (their fields are documented in
-the README), built from the counters and what each phase returns."""
+docs/reference/metrics.md), built from the counters and what each phase returns."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 config.json      the full resolved TrainConfig
 meta.json        seed, device, package versions, git revision, command, start time
 metrics.jsonl    one JSON object per line, each with `step` and `kind`
-                 (`eval`, `feedback`, `train`); keys documented in the README
+                 (`eval`, `feedback`, `train`); keys in docs/reference/metrics.md
 checkpoint.pt    the latest checkpoint (written atomically at an episode end)
 summary.json     final numbers (a run with it is finished); returns.png the evaluation curve
 events.out.tfevents.*  the same metrics for TensorBoard; wandb.json with `--wandb`
