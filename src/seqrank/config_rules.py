@@ -67,9 +67,14 @@ def check_crowd(config: TrainConfig) -> None:
     if given:
         names = " and ".join(setting(name) for name in given)
         act = "act" if len(given) > 1 else "acts"
+        team = (
+            f"name a team with {setting('annotators')}"
+            if kind == "human"
+            else "use a crowd (crowd:oracle+mistake+noisy)"
+        )
         raise SettingError(
             f"{names} {act} on a crowd's answers; {setting('teacher')} '{config.teacher}' is "
-            "one teacher: leave them out, or use a crowd (crowd:oracle+mistake+noisy)"
+            f"one teacher: leave them out, or {team}"
         )
 
 

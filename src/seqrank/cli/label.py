@@ -32,6 +32,8 @@ from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.training.stopping import stop_on_signals
 
+OVERLAP = 0.1  # `label offline`: a team's share of questions asked twice (as TrainConfig)
+
 
 def add_parser(commands: Any) -> None:
     label = commands.add_parser(
@@ -104,7 +106,7 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument(
         "--overlap",
         type=number_between(0.0, 1.0),
-        default=0.1,
+        default=OVERLAP,
         help="with --annotators: the share of answers also asked of a second annotator (0.1)",
     )
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
@@ -154,6 +156,11 @@ def _offline_options(args: argparse.Namespace) -> Any:
             f"accepted: 1 to {episode}"
         )
     team = check_annotator_names(args.annotators, "--annotators") if args.annotators else ()
+    if not team and args.overlap != OVERLAP:
+        raise ValueError(
+            f"--overlap {args.overlap} acts on a team's answers; one person answers here: "
+            "leave it out, or name a team with --annotators"
+        )
     return OfflineOptions(
         task,
         args.scheme,
