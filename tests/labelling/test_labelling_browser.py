@@ -568,6 +568,7 @@ def test_two_annotators_answer_side_by_side_in_two_browsers_and_the_operator_see
             operator.goto(addresses["operator"])
             operator.wait_for_selector("#annotators tbody tr[data-annotator='bob']", timeout=30_000)
             shown = operator.locator("#annotators tbody tr").all_inner_texts()
+            progress = operator.inner_text("#progress")
             browser.close()
         thread.join(30)
         stored = hub.db.answered_questions()
@@ -575,5 +576,6 @@ def test_two_annotators_answer_side_by_side_in_two_browsers_and_the_operator_see
         by = {a.annotator for _, a in stored}
         assert by == {"alice", "bob"} and all(c > 0 for c in clicks.values())
         assert [row.split()[0] for row in shown] == ["alice", "bob"]
+        assert "session 1: 6 of 6 answered" in progress
     finally:
         stop(hub, server)

@@ -47,6 +47,16 @@ function showChains(chains) {
   }
 }
 
+// The session's questions answered over all its chains; a handed-over chain's questions are
+// its parent's unanswered ones, so only chains that continue none count toward the total.
+function sessionProgress(chains) {
+  if (!chains.length) return "";
+  const session = chains[0].session;
+  const answered = chains.reduce((sum, c) => sum + c.answered, 0);
+  const questions = chains.filter((c) => c.continues === null).reduce((sum, c) => sum + c.questions, 0);
+  return `session ${session}: ${answered} of ${questions} answered · `;
+}
+
 function showCurve(points) {
   const svg = $("curve");
   svg.replaceChildren();
@@ -67,7 +77,7 @@ async function refresh() {
     const response = await fetch("/api/operator", { credentials: "same-origin" });
     if (!response.ok) throw new Error(`error ${response.status}`);
     const view = await response.json();
-    $("progress").textContent = `${view.scheme || "-"} · ${view.phase} · overlap ${view.overlap} · hand-over after ${view.reassign_after_s} s`;
+    $("progress").textContent = `${view.scheme || "-"} · ${view.phase} · ${sessionProgress(view.chains)}overlap ${view.overlap} · hand-over after ${view.reassign_after_s} s`;
     $("message").textContent = view.message;
     showAnnotators(view.annotators);
     showChains(view.chains);
