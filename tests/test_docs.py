@@ -39,7 +39,13 @@ PAGES = [
 EVIDENCE = [*sorted((ROOT / "results").rglob("*.md"))]
 RUN = "seqrank-out/runs/run"
 DRY = (("train",), ("label", "online"), ("label", "study"), ("sweep",), ("bench",))
-RUNS_FOR_REAL = (("report",), ("labels", "export"), ("labels", "import"), ("theory",))
+RUNS_FOR_REAL = (
+    ("report",),
+    ("labels", "export"),
+    ("labels", "import"),
+    ("theory",),
+    ("simulate",),
+)
 PLACEHOLDERS = [
     (r"seqrank-out/runs/[^\s]*(\.\.\.|<a run>)", RUN),
     (r"RUN_OR_LABEL_DIR", RUN),
