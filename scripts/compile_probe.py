@@ -1,12 +1,13 @@
 """Does torch.compile speed up the fast SAC update here? Times 50 eager updates, compiles
 the update (`SAC.update_with_noise`, run the fast way), then times 50 compiled ones
-(walker sizes of the small preset).
+(walker sizes of the small preset), in the precision given (fp32 or bf16).
 
-    .venv/bin/python scripts/compile_probe.py
+    OMP_NUM_THREADS=1 .venv/bin/python scripts/compile_probe.py [fp32|bf16]
 """
 
 from __future__ import annotations
 
+import sys
 import time
 
 import torch
@@ -19,7 +20,8 @@ def main() -> None:
     settings = SACSettings(256, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
     torch.manual_seed(0)
     cpu = torch.device("cpu")
-    agent = SAC(24, 6, settings, cpu, Execution.fast(cpu, "fp32"))
+    precision = sys.argv[1] if len(sys.argv) > 1 else "fp32"
+    agent = SAC(24, 6, settings, cpu, Execution.fast(cpu, precision))
     generator = torch.Generator().manual_seed(1)
     rows = 256
     batch = Batch(
@@ -42,7 +44,7 @@ def main() -> None:
     started = time.perf_counter()
     agent.update(batch, generator)
     compile_seconds = time.perf_counter() - started
-    print(f"eager {eager:.0f} µs, compiled {per_update():.0f} µs, compile {compile_seconds:.1f} s")
+    print(f"{precision}: eager {eager:.0f} µs, compiled {per_update():.0f} µs, compile {compile_seconds:.1f} s")
 
 
 if __name__ == "__main__":
