@@ -44,7 +44,9 @@ def main() -> None:
     started = time.perf_counter()
     agent.update(batch, generator)
     compile_seconds = time.perf_counter() - started
-    print(f"{precision}: eager {eager:.0f} µs, compiled {per_update():.0f} µs, compile {compile_seconds:.1f} s")
+    compiled = per_update()
+    print(f"{precision}: eager {eager:.0f} µs, compiled {compiled:.0f} µs, ", end="")
+    print(f"compile {compile_seconds:.1f} s")
 
 
 if __name__ == "__main__":
