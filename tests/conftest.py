@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import pkgutil
 import subprocess
 import warnings
@@ -41,6 +42,19 @@ def _mujoco_warnings_as_python_warnings() -> None:
 
 
 _mujoco_warnings_as_python_warnings()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _cpu_path_measurements_kept_apart(tmp_path_factory: pytest.TempPathFactory):
+    """`--path auto` keeps its CPU measurements in ~/.cache/seqrank; a test run keeps its
+    own, so it neither reads the user's choice nor writes into their home."""
+    before = os.environ.get("SEQRANK_CACHE")
+    os.environ["SEQRANK_CACHE"] = str(tmp_path_factory.mktemp("seqrank-cache"))
+    yield
+    if before is None:
+        os.environ.pop("SEQRANK_CACHE", None)
+    else:
+        os.environ["SEQRANK_CACHE"] = before
 
 
 def _checkout_changes() -> set[str] | None:
