@@ -271,11 +271,13 @@ def test_every_public_name_has_its_block_on_the_api_page():
         for line in page.splitlines()
         if line.startswith(":::")
     }
-    # the two values (SCHEMES, __version__) are described in the module's own block
+    # a function or class has a block of its own; a value (SCHEMES, __version__) is named
+    # in the module's block, whose text is the package docstring
     missing = [
         name
         for name in seqrank.__all__
-        if name not in documented and f"`{name}`" not in page and name not in seqrank.__doc__
+        if name not in documented
+        and (callable(getattr(seqrank, name)) or f"`{name}`" not in seqrank.__doc__ + page)
     ]
     assert not missing, f"docs/reference/api.md has no ::: block for {missing}"
 

@@ -1,5 +1,5 @@
-"""What each `seqrank train` setting means, for `--help` (docs/reference/cli.md
-lists them all). Kept beside the parser so that a new TrainConfig field without a line here fails a
+"""What each `seqrank train` setting means, for `--help` (docs/reference/cli.md lists them
+all). Kept beside the parser so that a new TrainConfig field without a line here fails a
 test, not a user."""
 
 from __future__ import annotations
