@@ -26,16 +26,22 @@ OBS, ACT, ROWS = 7, 3, 48
 CUDA = pytest.mark.gpu
 
 
-def fast_execution(precision: str = "fp32") -> Execution:
-    """The fast path's way to run the update, without CUDA graphs."""
-    return Execution(stacked_critics=True, fused_adam=True, precision=precision)
+FLAT = pytest.mark.parametrize("flat", [False, True], ids=["autograd", "flat"])
 
 
-def twins(precision: str = "fp32", device: torch.device = CPU) -> tuple[SAC, SAC]:
+def fast_execution(precision: str = "fp32", flat: bool = False) -> Execution:
+    """The fast path's way to run the update, without CUDA graphs; `flat`: the CPU's flat
+    update (`agents.flat_update`), else autograd's (as on CUDA)."""
+    return Execution(stacked_critics=True, fused_adam=True, precision=precision, flat=flat)
+
+
+def twins(
+    precision: str = "fp32", device: torch.device = CPU, flat: bool = False
+) -> tuple[SAC, SAC]:
     """A reference agent and a fast one holding the same weights."""
     torch.manual_seed(0)
     reference = SAC(OBS, ACT, SETTINGS, device)
-    fast = SAC(OBS, ACT, SETTINGS, device, fast_execution(precision))
+    fast = SAC(OBS, ACT, SETTINGS, device, fast_execution(precision, flat))
     fast.actor.load_state_dict(reference.actor.state_dict())
     load_canonical_weights(fast.critic, canonical_weights(reference.critic))
     load_canonical_weights(fast.critic_target, canonical_weights(reference.critic_target))
@@ -80,8 +86,9 @@ def test_stacked_critic_gives_the_reference_q_values():
         torch.testing.assert_close(b, a, atol=1e-6, rtol=1e-6)
 
 
-def test_fp32_updates_match_the_reference_from_the_same_state_and_batch():
-    reference, fast = twins()
+@FLAT
+def test_fp32_updates_match_the_reference_from_the_same_state_and_batch(flat):
+    reference, fast = twins(flat=flat)
     generator = torch.Generator().manual_seed(1)
     moved = copy.deepcopy(reference.actor.state_dict())
     for _ in range(6):  # three soft target updates among them
@@ -99,17 +106,18 @@ def test_fp32_updates_match_the_reference_from_the_same_state_and_batch():
 
 
 @pytest.mark.parametrize(
-    ("precision", "device"),
+    ("precision", "device", "flat"),
     [
-        ("bf16", CPU),
-        pytest.param("bf16", torch.device("cuda"), marks=CUDA),
-        pytest.param("tf32", torch.device("cuda"), marks=CUDA),
+        ("bf16", CPU, False),
+        ("bf16", CPU, True),
+        pytest.param("bf16", torch.device("cuda"), False, marks=CUDA),
+        pytest.param("tf32", torch.device("cuda"), False, marks=CUDA),
     ],
 )
-def test_reduced_precision_stays_within_its_documented_tolerance(precision, device):
+def test_reduced_precision_stays_within_its_documented_tolerance(precision, device, flat):
     """bf16 and TF32 (docs/guides/speed.md): losses within 1%, the parameter steps pointing the
     same way (cosine similarity at least 0.98)."""
-    reference, fast = twins(precision, device)
+    reference, fast = twins(precision, device, flat)
     before = [p.detach().clone() for p in reference.actor.parameters()]
     generator = torch.Generator().manual_seed(1)
     batch = random_batch(generator, device)
@@ -131,8 +139,9 @@ def test_reduced_precision_stays_within_its_documented_tolerance(precision, devi
     assert cosine >= 0.98
 
 
-def test_critic_reset_happens_in_place():
-    _, fast = twins()
+@FLAT
+def test_critic_reset_happens_in_place(flat):
+    _, fast = twins(flat=flat)
     fast.update(random_batch(torch.Generator().manual_seed(1)), torch.Generator())
     addresses = [p.data_ptr() for p in fast.critic.parameters()]
     old = [p.detach().clone() for p in fast.critic.parameters()]
@@ -145,11 +154,12 @@ def test_critic_reset_happens_in_place():
         assert all(float(v.abs().sum()) == 0 for v in state.values())
 
 
-def test_the_capture_warm_up_is_undone_completely():
+@FLAT
+def test_the_capture_warm_up_is_undone_completely(flat):
     """Before a CUDA graph is captured, warm-up updates run and are then rolled back: the
     tensors the graph wrapper restores must be every tensor an update changes (checked
     here on the CPU)."""
-    _, fast = twins()
+    _, fast = twins(flat=flat)
     generator = torch.Generator().manual_seed(1)
     fast.update(random_batch(generator), generator)  # the optimisers' state exists
     saved = [(t, t.detach().clone()) for t in fast._touched()]
@@ -175,17 +185,18 @@ def assert_same_state(actual: object, expected: object, where: str = "") -> None
         assert actual == expected, where
 
 
-def test_a_checkpoint_moves_between_the_reference_and_fast_layouts():
+@FLAT
+def test_a_checkpoint_moves_between_the_reference_and_fast_layouts(flat):
     """Weights, temperature and Adam state saved by one path load into the other and save
     back unchanged; the loaded agents compute the same Q-values."""
-    reference, fast = twins()
+    reference, fast = twins(flat=flat)
     generator = torch.Generator().manual_seed(3)
     for _ in range(3):
         fast.update(random_batch(generator), generator)
     saved = copy.deepcopy(fast.state_dict())
     reference.load_state_dict(saved)
     assert_same_state(reference.state_dict(), saved)
-    back = SAC(OBS, ACT, SETTINGS, CPU, fast_execution())
+    back = SAC(OBS, ACT, SETTINGS, CPU, fast_execution(flat=flat))
     back.load_state_dict(reference.state_dict())
     assert_same_state(back.state_dict(), saved)
     batch = random_batch(generator)

@@ -20,6 +20,7 @@ import torch.nn.functional as F
 
 from seqrank.agents.critics import Critic, StackedTwinCritic, TwinCritic
 from seqrank.agents.cuda_graph import GraphedCall
+from seqrank.agents.flat_update import FlatSACUpdate
 from seqrank.agents.graph_check import UpdateProbe, check_first_replay
 from seqrank.agents.networks import Actor, squashed_gaussian
 from seqrank.agents.precision import autocast, matmul_precision
@@ -50,11 +51,12 @@ class Execution:
     device_noise: bool = False  # on CUDA only; a CPU run draws from the run's generator
     graphs: bool = False  # CUDA only: replay the update from a captured graph
     precision: str = "fp32"
+    flat: bool = False  # CPU: flat buffers and a hand-written backward (`flat_update`)
 
     @classmethod
     def fast(cls, device: torch.device, precision: str) -> Execution:
         cuda = device.type == "cuda"
-        return cls(True, True, cuda, cuda, precision)
+        return cls(True, True, cuda, cuda, precision, flat=not cuda)
 
 
 def critic_loss(q: tuple[torch.Tensor, torch.Tensor], target: torch.Tensor) -> torch.Tensor:
@@ -88,6 +90,8 @@ class SAC:
         self.execution = execution if execution is not None else Execution()
         self.obs_dim, self.act_dim = obs_dim, act_dim
         h, n = settings.hidden, settings.layers
+        if self.execution.flat and (device.type != "cpu" or not self.execution.stacked_critics):
+            raise ValueError("the flat update runs on a CPU with stacked critics only")
         self.actor = Actor(obs_dim, act_dim, h, n).to(device)
         layout = StackedTwinCritic if self.execution.stacked_critics else TwinCritic
         self.critic: Critic = layout(obs_dim, act_dim, h, n).to(device)
@@ -107,6 +111,7 @@ class SAC:
         self._graph_inputs: tuple[Batch, torch.Tensor, torch.Tensor] | None = None
         self.graph_checked = False
         self.fallback: str | None = None  # why the graph updates were given up, if they were
+        self._flat = FlatSACUpdate(self) if self.execution.flat else None
 
     def _adam(self, params: Iterable[torch.Tensor], lr: float) -> torch.optim.Adam:
         if not self.execution.fused_adam:
@@ -115,6 +120,14 @@ class SAC:
         return torch.optim.Adam(params, lr=lr, fused=True, capturable=capturable)
 
     # ---- what the training loop calls (the Agent protocol) ----------------------------
+    @property
+    def precision(self) -> str:
+        return self.execution.precision
+
+    @property
+    def discount(self) -> float:
+        return self.settings.discount
+
     @property
     def alpha(self) -> torch.Tensor:
         return self.log_alpha.exp()
@@ -192,6 +205,8 @@ class SAC:
         """Weights and optimiser state are copied into the existing tensors, so a captured
         graph stays valid."""
         load_sac_state(self, state)
+        if self._flat is not None:
+            self._flat.adopt_optimiser_state()
 
     # ---- the update ---------------------------------------------------------------------
     def noise(self, rows: int, generator: torch.Generator) -> torch.Tensor:
@@ -241,6 +256,9 @@ class SAC:
             return self.settings.discount * batch.not_done * soft_value
 
     def _step(self, batch: Batch, next_noise: torch.Tensor, noise: torch.Tensor) -> None:
+        if self._flat is not None:
+            self._write_metrics(*self._flat.step(batch, next_noise, noise))
+            return
         target = batch.reward + self._target_value(batch, next_noise)
         loss = critic_loss(self._q(self.critic, batch.obs, batch.action), target)
         descend(self.critic_opt, loss)

@@ -1,0 +1,165 @@
+"""The flat update (the fast path on a CPU) held to autograd: each hand-written backward
+piece against autograd's gradient, and whole updates against the autograd update."""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import replace
+
+import pytest
+import torch
+from test_sac_paths import ACT, CPU, OBS, ROWS, SETTINGS, random_batch
+
+from seqrank.agents.critics import StackedTwinCritic
+from seqrank.agents.flat_update import Layer, backward, forward, head_backward, min_gradient
+from seqrank.agents.networks import Actor, squashed_gaussian
+from seqrank.agents.sac import SAC, Execution
+
+FLAT = Execution(stacked_critics=True, fused_adam=True, flat=True)
+
+
+def test_the_fast_path_on_a_cpu_is_the_flat_update_and_only_there():
+    assert Execution.fast(CPU, "bf16").flat
+    assert not Execution.fast(torch.device("cuda"), "bf16").flat
+    with pytest.raises(ValueError, match="flat update runs on a CPU with stacked critics"):
+        SAC(OBS, ACT, SETTINGS, CPU, Execution(flat=True))
+
+
+def test_the_squashed_gaussian_head_gradient_is_autograds():
+    generator = torch.Generator().manual_seed(0)
+    head = torch.randn((ROWS, 2 * ACT), generator=generator, dtype=torch.float64) * 2
+    noise = torch.randn((ROWS, ACT), generator=generator, dtype=torch.float64)
+    grad_action = torch.randn((ROWS, ACT), generator=generator, dtype=torch.float64)
+    grad_log_prob = torch.tensor(0.37, dtype=torch.float64)
+    head.requires_grad_(True)
+    action, log_prob, _ = squashed_gaussian(head, noise)
+    ((action * grad_action).sum() + grad_log_prob * log_prob.sum()).backward()
+    assert head.grad is not None
+    ours = head_backward(head.detach(), noise, action.detach(), grad_action, grad_log_prob)
+    torch.testing.assert_close(ours, head.grad, rtol=1e-7, atol=1e-9)  # float64
+
+
+def test_the_minimum_gradient_splits_ties_as_autograd_does():
+    q = torch.tensor([[[1.0], [2.0], [3.0]], [[1.5], [2.0], [2.5]]], requires_grad=True)
+    torch.minimum(q[0], q[1]).sum().mul(-0.25).backward()
+    assert q.grad is not None
+    torch.testing.assert_close(min_gradient(q.detach(), -0.25), q.grad)
+    assert q.grad[:, 1].tolist() == [[-0.125], [-0.125]]  # the tie at row 1, split
+
+
+def _autograd_layers(params: list[torch.Tensor], stored_out_in: bool) -> list[Layer]:
+    """Layers over `params` themselves (weights, then biases of the same layer)."""
+    layers = []
+    for weight, bias in zip(params[0::2], params[1::2], strict=True):
+        if stored_out_in:
+            weight, bias = weight.unsqueeze(0).transpose(1, 2), bias.view(1, 1, -1)
+        empty = torch.empty(0)
+        layers.append(Layer(weight, bias, empty, empty, stored_out_in))
+    return layers
+
+
+@pytest.mark.parametrize("stored_out_in", [True, False], ids=["actor", "stacked-critic"])
+def test_the_mlp_backward_gives_autograds_gradients(stored_out_in):
+    torch.manual_seed(0)
+    if stored_out_in:
+        params = list(Actor(OBS, ACT, 16, 2).net.parameters())
+        x = torch.randn(1, ROWS, OBS)
+    else:
+        critic = StackedTwinCritic(OBS, ACT, 16, 2)
+        weights, biases = list(critic.weights), list(critic.biases)
+        params = [t for pair in zip(weights, biases, strict=True) for t in pair]
+        x = torch.randn(1, ROWS, OBS + ACT).expand(2, -1, -1)
+    x.requires_grad_(True)
+    out, inputs = forward(_autograd_layers(params, stored_out_in), x)
+    grad_out = torch.randn_like(out)
+    (out * grad_out).sum().backward()
+    grads = [torch.empty_like(p) for p in params]
+    layers = [
+        Layer(
+            layer.weight.detach(),
+            layer.bias.detach(),
+            gw.view_as(layer.weight.transpose(1, 2)) if stored_out_in else gw,
+            gb.view_as(layer.bias),
+            stored_out_in,
+        )
+        for layer, gw, gb in zip(
+            _autograd_layers(params, stored_out_in), grads[0::2], grads[1::2], strict=True
+        )
+    ]
+    detached = [i.detach() for i in inputs]
+    assert backward(layers, detached, grad_out, weights=True) is None
+    for ours, param in zip(grads, params, strict=True):
+        torch.testing.assert_close(ours, param.grad, rtol=1e-5, atol=1e-6)
+    grad_input = backward(layers, detached, grad_out, weights=False)
+    torch.testing.assert_close(grad_input, x.grad, rtol=1e-5, atol=1e-6)
+
+
+def _same_start(execution: Execution) -> tuple[SAC, SAC]:
+    """An autograd agent (stacked critics, fused Adam) and a flat one, equal weights."""
+    torch.manual_seed(0)
+    autograd = SAC(OBS, ACT, SETTINGS, CPU, replace(execution, flat=False))
+    flat = SAC(OBS, ACT, SETTINGS, CPU, execution)
+    flat.load_state_dict(autograd.state_dict())
+    return autograd, flat
+
+
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_flat_updates_follow_the_autograd_updates(precision):
+    """Same batches and noise: losses, weights, temperature and Adam's moments agree (bf16:
+    both round the same products to bf16, so only the order of sums differs)."""
+    autograd, flat = _same_start(replace(FLAT, precision=precision))
+    generator = torch.Generator().manual_seed(1)
+    for _ in range(5):
+        batch = random_batch(generator)
+        noises = [torch.randn((ROWS, ACT), generator=generator) for _ in range(2)]
+        autograd.update_with_noise(batch, *noises)
+        flat.update_with_noise(batch, *noises)
+        for name, value in autograd.last_metrics.items():
+            assert flat.last_metrics[name] == pytest.approx(value, rel=1e-4, abs=1e-6), name
+    tolerance = 1e-6 if precision == "fp32" else 1e-3
+    expected, actual = autograd.state_dict(), flat.state_dict()
+    for part in ("actor", "critic", "critic_target"):
+        for name, value in expected[part].items():
+            torch.testing.assert_close(actual[part][name], value, atol=tolerance, rtol=0)
+    for moment in ("exp_avg", "exp_avg_sq"):
+        for name, value in expected["critic_opt"][moment].items():
+            torch.testing.assert_close(
+                actual["critic_opt"][moment][name], value, atol=tolerance, rtol=1e-3
+            )
+    assert actual["critic_opt"]["step"] == expected["critic_opt"]["step"] == 5
+    torch.testing.assert_close(actual["log_alpha"], expected["log_alpha"])
+
+
+def test_the_modules_are_views_of_what_the_flat_update_steps():
+    """The actor acts with the stepped weights; a checkpoint records the stepped Adam state."""
+    _, flat = _same_start(FLAT)
+    obs = torch.zeros(OBS).numpy()
+    acting_before = flat.act(obs, True, torch.Generator())
+    assert flat.state_dict()["critic_opt"] is None  # no state before the first step
+    generator = torch.Generator().manual_seed(2)
+    flat.update(random_batch(generator), generator)
+    assert (flat.act(obs, True, torch.Generator()) != acting_before).any()
+    state = flat.state_dict()["critic_opt"]
+    assert state["step"] == 1 and all(v.abs().sum() > 0 for v in state["exp_avg"].values())
+
+
+def test_a_loaded_adam_state_is_the_one_the_flat_update_continues():
+    """Loading into a fresh flat agent (no Adam state yet) and into one with state, then one
+    update each: both continue exactly as the agent that saved the state."""
+    _, saver = _same_start(FLAT)
+    generator = torch.Generator().manual_seed(3)
+    for _ in range(3):
+        saver.update(random_batch(generator), generator)
+    saved = copy.deepcopy(saver.state_dict())
+    fresh = SAC(OBS, ACT, SETTINGS, CPU, FLAT)
+    stepped = SAC(OBS, ACT, SETTINGS, CPU, FLAT)
+    stepped.update(random_batch(generator), generator)
+    batch, noises = random_batch(generator), [torch.randn((ROWS, ACT)) for _ in range(2)]
+    for agent in (fresh, stepped, saver):
+        if agent is not saver:
+            agent.load_state_dict(saved)
+        agent.update_with_noise(batch, *noises)
+    for agent in (fresh, stepped):
+        for a, b in zip(agent.critic.parameters(), saver.critic.parameters(), strict=True):
+            assert torch.equal(a, b)
+        assert agent.state_dict()["critic_opt"]["step"] == 4
