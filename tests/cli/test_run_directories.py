@@ -111,6 +111,8 @@ def test_dry_run_checks_and_writes_nothing(tmp_path, monkeypatch, capsys):
     assert main(["train", *SHORT, "--dry-run"]) == 0
     err = capsys.readouterr().err
     assert "settings valid (small preset, device cpu)" in err and "max_feedback = 10" in err
+    threads = torch.get_num_threads()  # the reference path keeps torch's setting
+    assert f"fp32, {threads} torch thread" in err
     assert list(tmp_path.iterdir()) == []
 
 

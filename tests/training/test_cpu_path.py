@@ -79,3 +79,46 @@ def test_a_real_measurement_leaves_the_global_random_state_alone():
     speedup = cpu_path._measure(UpdateShape(3, 1, 8, 1, 8))
     assert speedup > 0
     assert torch.equal(torch.random.get_rng_state(), before)
+
+
+@pytest.mark.parametrize(
+    ("cores", "torch_threads", "fast", "expected"),
+    [
+        (2, 2, True, 1),  # one core left to the evaluation process and the simulator
+        (8, 8, True, 7),
+        (8, 3, True, 3),  # never more than torch's own setting (OMP_NUM_THREADS, a sweep's)
+        (1, 1, True, 1),
+        (2, 2, False, 2),  # the reference path evaluates inline: torch's setting
+    ],
+)
+def test_a_cpu_run_leaves_a_core_to_its_evaluation_on_the_fast_path(
+    monkeypatch, cores, torch_threads, fast, expected
+):
+    monkeypatch.setattr(cpu_path.os, "sched_getaffinity", lambda _: set(range(cores)))
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(torch_threads)
+        assert cpu_path.training_threads(fast) == expected
+        with cpu_path.torch_threads(expected):
+            assert torch.get_num_threads() == expected
+        assert torch.get_num_threads() == torch_threads  # put back
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_the_measurement_runs_with_the_threads_a_fast_run_trains_with(machine, monkeypatch):
+    monkeypatch.setattr(cpu_path.os, "sched_getaffinity", lambda _: {0, 1})
+    seen: list[int] = []
+
+    def measure(shape):
+        seen.append(torch.get_num_threads())
+        return 2.0
+
+    monkeypatch.setattr(cpu_path, "_measure", measure)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        assert cpu_path.measured_speedup(CHECKED) == 2.0
+        assert seen == [1] and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

@@ -154,8 +154,15 @@ def prepare_run(
 
 
 def _way(runtime: Runtime) -> str:
-    """How the run computes, as the user reads it (`--path auto` resolved)."""
-    return f"{runtime.path} path, {runtime.precision}"
+    """How the run computes, as the user reads it (`--path auto` resolved; on a CPU, the
+    torch threads it trains with)."""
+    way = f"{runtime.path} path, {runtime.precision}"
+    if runtime.device.type != "cpu":
+        return way
+    from seqrank.training.cpu_path import training_threads
+
+    threads = training_threads(runtime.fast)
+    return f"{way}, {threads} torch thread{'s' if threads > 1 else ''}"
 
 
 def _check_with_env(config: TrainConfig) -> Runtime:

@@ -7,12 +7,13 @@ choice takes three facts:
 
 - the processor's flags name native bf16 (`/proc/cpuinfo`; elsewhere: no);
 - the run's networks are at least the sizes whose learning was checked side by side
-  (`results/speed/walker-bf16-cpu.toml`: 256 x 2, batch 256; smaller ones stay reference);
-- a measurement of both updates at the run's own shapes, on this machine, with this many
-  torch threads, finds the fast bf16 update at least `MIN_SPEEDUP` times faster. It takes
-  about a second, and is kept in `~/.cache/seqrank/cpu-paths.json` (`SEQRANK_CACHE` moves
-  it), so the choice is made once per machine and shape, and two runs on one machine
-  take the same path.
+  (`results/speed/walker-flat-bf16-cpu.toml`: 256 x 2, batch 256; smaller ones stay
+  reference);
+- a measurement of both updates at the run's own shapes, on this machine, with the torch
+  threads a fast run trains with (`training_threads`), finds the fast bf16 update at least
+  `MIN_SPEEDUP` times faster. It takes about a second, and is kept in
+  `~/.cache/seqrank/cpu-paths.json` (`SEQRANK_CACHE` moves it), so the choice is made once
+  per machine and shape, and two runs on one machine take the same path.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import os
 import platform
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -59,6 +61,30 @@ def cpu_flags() -> set[str]:
     return set(line.partition(":")[2].split())
 
 
+def training_threads(fast: bool) -> int:
+    """Torch's intra-op threads for a CPU run: on the fast path one core fewer than the
+    machine has (at least one, never more than torch's own setting), because its evaluation
+    runs in a process of its own and its feedback sessions in a thread: with every core in
+    torch's pool those stall each update (the main job on a 2-core machine took 13.2 min
+    with two threads, 10.3 with one: `results/main-job-cpu.md`). The reference path, which
+    evaluates inline, keeps torch's setting."""
+    if not fast:
+        return torch.get_num_threads()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(torch.get_num_threads(), (cores or 1) - 1))
+
+
+@contextlib.contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """Torch's intra-op thread count set to `count` for a while, then put back."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 def native_bf16() -> bool:
     return bool(cpu_flags() & set(NATIVE_BF16_FLAGS))
 
@@ -73,13 +99,12 @@ def prefers_fast_bf16(shape: UpdateShape) -> bool:
 def measured_speedup(shape: UpdateShape) -> float:
     """How many times faster the fast bf16 update is than the reference one (cached)."""
     cache = _cache_file()
-    key = (
-        f"{_machine()}|torch {torch.__version__}|threads {torch.get_num_threads()}|{asdict(shape)}"
-        f"|{MEASURED}"
-    )
+    threads = training_threads(fast=True)
+    key = f"{_machine()}|torch {torch.__version__}|threads {threads}|{asdict(shape)}|{MEASURED}"
     known = _read(cache)
     if key not in known:
-        known[key] = _measure(shape)
+        with torch_threads(threads):
+            known[key] = _measure(shape)
         _write(cache, {**_read(cache), key: known[key]})
     return float(known[key])
 

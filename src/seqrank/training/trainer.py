@@ -25,7 +25,7 @@ from seqrank.training.agent_factory import make_agent
 from seqrank.training.backbones import BACKBONES, UpdateParts
 from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
 from seqrank.training.collect import Collector
-from seqrank.training.cpu_path import UpdateShape
+from seqrank.training.cpu_path import UpdateShape, torch_threads, training_threads
 from seqrank.training.evaluator import (
     ActorShape,
     BackgroundEvaluations,
@@ -166,9 +166,15 @@ class Trainer:
             return BackgroundEvaluations(actor, shape)
         return InlineEvaluations(self.agent, self.eval_env, self.generator, shape)
 
+    @property
+    def threads(self) -> int:
+        """Torch threads the run trains with (`cpu_path.training_threads`)."""
+        cpu = self.runtime.device.type == "cpu"
+        return training_threads(self.runtime.fast) if cpu else torch.get_num_threads()
+
     def train(self) -> dict[str, Any]:
         try:
-            with matmul_precision(self.runtime.precision):
+            with matmul_precision(self.runtime.precision), torch_threads(self.threads):
                 return run_loop(self)
         finally:
             self.evaluations.close()
