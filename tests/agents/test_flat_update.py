@@ -94,72 +94,79 @@ def test_the_mlp_backward_gives_autograds_gradients(stored_out_in):
     torch.testing.assert_close(grad_input, x.grad, rtol=1e-5, atol=1e-6)
 
 
-def _same_start(execution: Execution) -> tuple[SAC, SAC]:
+def _same_start(execution: Execution, layers: int = 2) -> tuple[SAC, SAC]:
     """An autograd agent (stacked critics, fused Adam) and a flat one, equal weights."""
     torch.manual_seed(0)
-    autograd = SAC(OBS, ACT, SETTINGS, CPU, replace(execution, flat=False))
-    flat = SAC(OBS, ACT, SETTINGS, CPU, execution)
+    settings = replace(SETTINGS, layers=layers)
+    autograd = SAC(OBS, ACT, settings, CPU, replace(execution, flat=False))
+    flat = SAC(OBS, ACT, settings, CPU, execution)
     flat.load_state_dict(autograd.state_dict())
     return autograd, flat
 
 
-@pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_flat_updates_follow_the_autograd_updates(precision):
-    """Same batches and noise: losses, weights, temperature and Adam's moments agree (bf16:
-    both round the same products to bf16, so only the order of sums differs)."""
-    autograd, flat = _same_start(replace(FLAT, precision=precision))
+def _assert_same_state(actual: dict, expected: dict, tolerance: float) -> None:
+    """Weights, temperature and every optimiser's moments and step."""
+    for part in ("actor", "critic", "critic_target"):
+        for name, value in expected[part].items():
+            torch.testing.assert_close(actual[part][name], value, atol=tolerance, rtol=0)
+    for optimiser in ("actor_opt", "critic_opt", "alpha_opt"):
+        assert actual[optimiser]["step"] == expected[optimiser]["step"], optimiser
+        for moment in ("exp_avg", "exp_avg_sq"):
+            for name, value in expected[optimiser][moment].items():
+                torch.testing.assert_close(
+                    actual[optimiser][moment][name], value, atol=tolerance, rtol=1e-3
+                )
+    torch.testing.assert_close(actual["log_alpha"], expected["log_alpha"])
+
+
+@pytest.mark.parametrize(
+    ("precision", "layers"), [("fp32", 2), ("bf16", 2), ("fp32", 1), ("fp32", 3)]
+)
+def test_flat_updates_follow_the_autograd_updates(precision, layers):
+    """Same batches and noise, a critic reset among them: losses, weights, temperature and
+    Adam's state agree (bf16: both round the same products to bf16, so only the order of
+    sums differs)."""
+    autograd, flat = _same_start(replace(FLAT, precision=precision), layers)
     generator = torch.Generator().manual_seed(1)
-    for _ in range(5):
+    for update in range(6):  # three soft target updates among them
         batch = random_batch(generator)
         noises = [torch.randn((ROWS, ACT), generator=generator) for _ in range(2)]
+        if update == 3:
+            torch.manual_seed(7)  # the reset draws fresh weights from the global generator
+            autograd.reset_critic()
+            torch.manual_seed(7)
+            flat.reset_critic()
         autograd.update_with_noise(batch, *noises)
         flat.update_with_noise(batch, *noises)
         for name, value in autograd.last_metrics.items():
             assert flat.last_metrics[name] == pytest.approx(value, rel=1e-4, abs=1e-6), name
     tolerance = 1e-6 if precision == "fp32" else 1e-3
-    expected, actual = autograd.state_dict(), flat.state_dict()
-    for part in ("actor", "critic", "critic_target"):
-        for name, value in expected[part].items():
-            torch.testing.assert_close(actual[part][name], value, atol=tolerance, rtol=0)
-    for moment in ("exp_avg", "exp_avg_sq"):
-        for name, value in expected["critic_opt"][moment].items():
-            torch.testing.assert_close(
-                actual["critic_opt"][moment][name], value, atol=tolerance, rtol=1e-3
-            )
-    assert actual["critic_opt"]["step"] == expected["critic_opt"]["step"] == 5
-    torch.testing.assert_close(actual["log_alpha"], expected["log_alpha"])
+    _assert_same_state(flat.state_dict(), autograd.state_dict(), tolerance)
+    assert flat.state_dict()["actor_opt"]["step"] == 6
 
 
-def test_the_modules_are_views_of_what_the_flat_update_steps():
-    """The actor acts with the stepped weights; a checkpoint records the stepped Adam state."""
+def test_the_recording_optimisers_refuse_to_step():
+    """Stepping a recording optimiser would move the weights twice and its step count once
+    per parameter: it says so instead."""
     _, flat = _same_start(FLAT)
-    obs = torch.zeros(OBS).numpy()
-    acting_before = flat.act(obs, True, torch.Generator())
-    assert flat.state_dict()["critic_opt"] is None  # no state before the first step
-    generator = torch.Generator().manual_seed(2)
-    flat.update(random_batch(generator), generator)
-    assert (flat.act(obs, True, torch.Generator()) != acting_before).any()
-    state = flat.state_dict()["critic_opt"]
-    assert state["step"] == 1 and all(v.abs().sum() > 0 for v in state["exp_avg"].values())
+    flat.update(random_batch(torch.Generator().manual_seed(2)), torch.Generator())
+    with pytest.raises(RuntimeError, match="steps the weights itself"):
+        flat.actor_opt.step()
 
 
-def test_a_loaded_adam_state_is_the_one_the_flat_update_continues():
-    """Loading into a fresh flat agent (no Adam state yet) and into one with state, then one
-    update each: both continue exactly as the agent that saved the state."""
+def test_an_optimiser_record_replaced_behind_its_back_is_taken_in():
+    """torch's own `Optimizer.load_state_dict` replaces the record's tensors: the next flat
+    step starts from what it loaded (Adam step 2 here, not the agent's own 1)."""
     _, saver = _same_start(FLAT)
-    generator = torch.Generator().manual_seed(3)
-    for _ in range(3):
+    generator = torch.Generator().manual_seed(4)
+    for _ in range(2):
         saver.update(random_batch(generator), generator)
-    saved = copy.deepcopy(saver.state_dict())
-    fresh = SAC(OBS, ACT, SETTINGS, CPU, FLAT)
-    stepped = SAC(OBS, ACT, SETTINGS, CPU, FLAT)
-    stepped.update(random_batch(generator), generator)
-    batch, noises = random_batch(generator), [torch.randn((ROWS, ACT)) for _ in range(2)]
-    for agent in (fresh, stepped, saver):
-        if agent is not saver:
-            agent.load_state_dict(saved)
-        agent.update_with_noise(batch, *noises)
-    for agent in (fresh, stepped):
-        for a, b in zip(agent.critic.parameters(), saver.critic.parameters(), strict=True):
-            assert torch.equal(a, b)
-        assert agent.state_dict()["critic_opt"]["step"] == 4
+    _, loader = _same_start(FLAT)
+    loader.update(random_batch(generator), generator)
+    loader.critic_opt.load_state_dict(copy.deepcopy(saver.critic_opt.state_dict()))
+    loaded = copy.deepcopy(loader.state_dict()["critic_opt"])
+    assert loaded["step"] == 2
+    loader.update(random_batch(generator), generator)
+    after = loader.state_dict()["critic_opt"]
+    assert after["step"] == 3
+    assert all(not torch.equal(after["exp_avg"][n], v) for n, v in loaded["exp_avg"].items())

@@ -57,6 +57,8 @@ class FlatAdam:
         self.grad = torch.zeros_like(flat)
         self.exp_avg, self.exp_avg_sq = torch.zeros_like(flat), torch.zeros_like(flat)
         self.steps = torch.zeros((), dtype=torch.float32)
+        self._recorded: torch.Tensor | None = None  # the first parameter's recorded moment
+        optimizer.step = _stepped_elsewhere  # type: ignore[method-assign]
 
     def adopt(self) -> None:
         """Takes the optimiser's recorded state (after a load) into the flat buffers; an
@@ -78,14 +80,20 @@ class FlatAdam:
         moments = views(self.exp_avg, self.params), views(self.exp_avg_sq, self.params)
         for param, avg, avg_sq in zip(self.params, *moments, strict=True):
             self.optimizer.state[param] = {"step": self.steps, "exp_avg": avg, "exp_avg_sq": avg_sq}
+        self._recorded = self.optimizer.state[self.params[0]]["exp_avg"]
 
     def step(self) -> None:
-        """One Adam step on `grad` (fresh state on the first step or after a reset)."""
-        if not self.optimizer.state:
+        """One Adam step on `grad` (fresh state on the first step or after a reset; a
+        record replaced behind its back, e.g. by the optimiser's own `load_state_dict`,
+        is taken in first)."""
+        state = self.optimizer.state
+        if not state:
             self.exp_avg.zero_()
             self.exp_avg_sq.zero_()
             self.steps.zero_()
             self._record()
+        elif state.get(self.params[0], {}).get("exp_avg") is not self._recorded:
+            self.adopt()
         group = self.optimizer.param_groups[0]
         beta1, beta2 = group["betas"]
         adam(
@@ -93,6 +101,14 @@ class FlatAdam:
             fused=True, amsgrad=False, beta1=beta1, beta2=beta2, lr=group["lr"],
             weight_decay=group["weight_decay"], eps=group["eps"], maximize=False,
         )  # fmt: skip
+
+
+def _stepped_elsewhere(*args: object, **kwargs: object) -> None:
+    raise RuntimeError(
+        "this optimiser only records the Adam state of a flat update "
+        "(seqrank.agents.flat_update), which steps the weights itself; stepping it too "
+        "would move them twice"
+    )
 
 
 @dataclass(frozen=True)
@@ -263,6 +279,11 @@ class FlatSACUpdate:
             )
             for i in range(0, len(weights), 2)
         ]
+
+    def soft_update(self, tau: float) -> None:
+        """target <- (1 - tau) target + tau critic: one lerp over the flat buffers."""
+        size = self.critic_size
+        self.critics.master[size:].lerp_(self.critics.master[:size], tau)
 
     def adopt_optimiser_state(self) -> None:
         """After a checkpoint is loaded: its Adam state into the flat buffers."""

@@ -3,8 +3,10 @@
 The reference and fast paths are this one update run two ways (`Execution`): the fast path
 stacks the twin critics into batched matmuls, uses fused Adam, draws policy noise on the
 device and, on CUDA, replays the update from a captured graph (`cuda_graph.GraphedCall`);
-precision (fp32, TF32, bf16 autocast) is a context around the same code. Nothing in an
-update reads a value back to the host: losses are read when `last_metrics` is asked for.
+precision (fp32, TF32, bf16 autocast) is a context around the same code. On a CPU the fast
+path's update is `flat_update`: the same arithmetic written out over flat buffers (fewer
+operations; bf16 by explicit casts rather than autocast). Nothing in an update reads a
+value back to the host: losses are read when `last_metrics` is asked for.
 """
 
 from __future__ import annotations
@@ -287,6 +289,9 @@ class SAC:
             self._metrics[name].copy_(value)
 
     def _soft_update_target(self) -> None:
+        if self._flat is not None:
+            self._flat.soft_update(self.settings.tau)
+            return
         soft_update(self.critic_target.parameters(), self.critic.parameters(), self.settings.tau)
 
     # ---- CUDA graphs --------------------------------------------------------------------

@@ -169,7 +169,11 @@ def device_name(device: torch.device) -> str:
         return torch.cuda.get_device_name(device)
     import platform
 
-    return f"CPU ({platform.processor() or platform.machine()}, {torch.get_num_threads()} threads)"
+    from seqrank.training.cpu_path import training_threads
+
+    threads, fast = torch.get_num_threads(), training_threads(fast=True)
+    loop = f"; the fast path's loop, as a run trains: {fast}" if fast != threads else ""
+    return f"CPU ({platform.processor() or platform.machine()}, {threads} threads{loop})"
 
 
 def full_run(plan: BenchPlan) -> dict[str, Any]:

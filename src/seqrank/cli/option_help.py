@@ -18,7 +18,7 @@ MEANINGS = {
     "steps": "environment steps of the whole run",
     "device": "auto, cpu, cuda",
     "path": "reference, fast, or auto (fast on CUDA; on a CPU with native bf16 the fast path "
-    "in bf16 where measured faster)",
+    "in bf16 where measured faster; on a CPU the fast path leaves one core to evaluation)",
     "precision": "fp32, tf32, bf16 (fast path), or auto",
     "hidden": "SAC: units per hidden layer",
     "layers": "SAC: hidden layers",

@@ -66,7 +66,7 @@ def training_threads(fast: bool) -> int:
     machine has (at least one, never more than torch's own setting), because its evaluation
     runs in a process of its own and its feedback sessions in a thread: with every core in
     torch's pool those stall each update (the main job on a 2-core machine took 13.2 min
-    with two threads, 10.3 with one: `results/main-job-cpu.md`). The reference path, which
+    with two threads, 10.2 with one: `results/main-job-cpu.md`). The reference path, which
     evaluates inline, keeps torch's setting."""
     if not fast:
         return torch.get_num_threads()
