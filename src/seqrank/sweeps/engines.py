@@ -81,18 +81,22 @@ def train_run(
     torch.set_num_threads(threads)
     settings = TrainConfig(**config)
     started = open_or_start(Path(path), settings, settings.device, Trainer, wandb)
+    stops: contextlib.AbstractContextManager[object] = contextlib.nullcontext()
+    if started.finished:
+        pass
+    elif _worker_stop is not None:  # a local worker: its SIGTERM handler is installed
+        started.trainer.stop_requested = _worker_stop
+    else:  # Ray's cancel interrupts the main thread: asks the run to stop from here on,
+        # before the start is announced (a cancel answering it must not be lost)
+        stops = stop_on_signals(started.trainer.stop_requested.set, lambda text: None)
     try:
-        queue = starts if starts is not None else _worker_starts
-        if token is not None and queue is not None:
-            queue.put(token)
-        if started.finished:
-            return {"status": "skipped", "summary": started.run.read_summary()}
-        if _worker_stop is not None:  # a local worker: its SIGTERM handler is installed
-            started.trainer.stop_requested = _worker_stop
+        with stops:
+            queue = starts if starts is not None else _worker_starts
+            if token is not None and queue is not None:
+                queue.put(token)
+            if started.finished:
+                return {"status": "skipped", "summary": started.run.read_summary()}
             summary = started.trainer.train()
-        else:
-            with stop_on_signals(started.trainer.stop_requested.set, lambda text: None):
-                summary = started.trainer.train()
         return {"status": "resumed" if started.resumed else "trained", "summary": summary}
     finally:
         started.run.release()
