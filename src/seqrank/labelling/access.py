@@ -14,7 +14,9 @@ Threats and what stops each (SECURITY.md says the same for users):
   HttpOnly, SameSite=Strict cookie (the page then drops it from the address bar); the
   cookie holds a value derived from the token, not the token, and its name carries the
   port, so two servers on one machine keep their own. Browsers send cookies to every port
-  of a host: a service on another port of this machine can still receive it.
+  of a host: a service on another port of this machine can still receive it;
+- acting as another (a team's page): a request carrying two credentials is the person whose
+  token it presents, in the address or the header, never the cookie's (`identify`).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import secrets
 import socket
 import string
 import struct
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -263,22 +265,55 @@ def check_request(access: Access, request: HTTPConnection, method: str = "GET") 
         return Verdict(403, refused)
     if access.token is None:
         return Verdict()
-    pages = ("/", "/operator")
-    from_address = request.query_params.get("token") if request.scope["path"] in pages else None
+    return identify(access, request)
+
+
+PAGES = ("/", "/operator")  # the addresses that take `?token=` (and trade it for the cookie)
+UNKNOWN = "missing or wrong access token: open the address the server printed"
+
+
+def identify(access: Access, request: HTTPConnection) -> Verdict:
+    """Whose request it is. A token the request presents (in a page's address, or in the
+    header) decides, over the cookie: a wrong one is refused even beside a valid cookie,
+    and the cookie is re-issued when it is not the winner's. An address and a header that
+    give two different tokens are refused (400): neither is taken over the other. The
+    cookie alone decides only when no token is presented."""
+    from_address = request.query_params.get("token") if request.scope["path"] in PAGES else None
     header = request.headers.get(TOKEN_HEADER)
     cookie = request.cookies.get(access.cookie)
+    if from_address is not None and header is not None and not _same(from_address, header):
+        return Verdict(
+            400,
+            "the request carries two different tokens, in the address and in the "
+            f"{TOKEN_HEADER} header: send one",
+        )
+    given = from_address if from_address is not None else header
+    if given is None:
+        found = _holder(access, cookie, access.session_value) if cookie is not None else None
+        return Verdict(401, UNKNOWN) if found is None else Verdict(who=found[0])
+    found = _holder(access, given, lambda token: token)
+    if found is None:
+        return Verdict(401, UNKNOWN)
+    who, token = found
+    stale = cookie is not None and not _same(cookie, access.session_value(token))
+    reissue = from_address is not None or stale  # the address's is always traded for one
+    return Verdict(set_cookie=token if reissue else None, who=who)
+
+
+def _holder(
+    access: Access, given: str, credential: Callable[[str], str]
+) -> tuple[str | None, str] | None:
+    """(who, token) of the holder whose `credential(token)` is `given`; None: nobody's.
+    Every holder is compared, in constant time each."""
+    found = None
     for who, token in access.holders():
-        if from_address is not None and _same(from_address, token):
-            return Verdict(set_cookie=token, who=who)
-        if header is not None and _same(header, token):
-            return Verdict(who=who)
-        if cookie is not None and _same(cookie, access.session_value(token)):
-            return Verdict(who=who)
-    return Verdict(401, "missing or wrong access token: open the address the server printed")
+        if _same(given, credential(token)) and found is None:
+            found = (who, token)
+    return found
 
 
 def _same(given: str, expected: str) -> bool:
-    return secrets.compare_digest(given.encode(errors="replace"), expected.encode())
+    return secrets.compare_digest(given.encode(errors="replace"), expected.encode(errors="replace"))
 
 
 class AccessGuard:
