@@ -417,3 +417,27 @@ def test_a_checked_cell_tells_each_session_whether_the_teacher_contradicted_them
     assert source.told == [any(source.slipped[:k]) for k in range(len(source.told))]
     # the model gives its opinion on every segment from its first fit on (10 questions)
     assert source.model[0] == 0 and all(n == source.model[1] > 0 for n in source.model[1:])
+
+
+def test_a_scripted_teachers_cells_run_once_beside_a_crowd_under_two_weightings(
+    pool_file, tmp_path, capsys
+):
+    out = tmp_path / "bench"
+    args = ["reward-bench", "run", "--pool", str(pool_file), "--schemes", "root"]
+    args += ["--teachers", "crowd:oracle+mistake+noisy,oracle", "--weightings", "reliability,none"]
+    args += ["--seeds", "1", "--budgets", "10", "--session-questions", "10", "--out", str(out)]
+    assert main([*args, "--heldout-segments", "40", "--reward-epochs", "3", "--workers", "1"]) == 0
+    printed, logged = capsys.readouterr()
+    assert "cells 3/3 (" in logged  # the crowd under each weighting, the oracle once
+    rows = read_rows(out / "rows.jsonl")
+    assert sorted(r["teacher"] for r in rows).count("oracle") == 1
+    assert "| dmc:cartpole_swingup | oracle | plain | 10 | root | 1 |" in printed
+    # the crowd's default (labels as answered) is the baseline; weighting is the variant
+    effects = (out / "effects.md").read_text()
+    assert "| plain+weighted vs plain | root | 10 | 1 |" in effects
+    # a folder written before the fix holds the oracle's row twice: reported once
+    oracle = next(r for r in rows if r["teacher"] == "oracle")
+    with (out / "rows.jsonl").open("a") as handle:
+        handle.write(json.dumps({**oracle, "weighting": "none"}) + "\n")
+    assert main(["reward-bench", "report", str(out)]) == 0
+    assert "| dmc:cartpole_swingup | oracle | plain | 10 | root | 1 |" in capsys.readouterr().out

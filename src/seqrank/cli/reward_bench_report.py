@@ -50,6 +50,7 @@ def run_report(args: argparse.Namespace, out: Console, err: Console) -> int:
 def write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: Console) -> None:
     """table.md, summary.json and the curves; with other methods beside the baseline, also
     effects.md and effects.json (each against the baseline, seed by seed)."""
+    from seqrank.rewardbench.cells import distinct_rows
     from seqrank.rewardbench.summary import (
         format_effects,
         format_table,
@@ -58,6 +59,7 @@ def write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: C
         summarise,
     )
 
+    rows = distinct_rows(rows)
     summary = summarise(rows)
     table = format_table(summary)
     (folder / "table.md").write_text(table)

@@ -43,6 +43,7 @@ from seqrank.feedback.sources import make_source
 from seqrank.feedback.teachers import parse_teacher
 from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel, RewardTrainResult
+from seqrank.rewardbench.cells import Cell
 from seqrank.rewardbench.pool import Pool
 
 
@@ -72,35 +73,6 @@ class BenchSettings:
             raise ValueError(f"budgets must rise strictly, got {list(self.budgets)}")
         if self.budgets[0] < 1 or self.session_questions < 1:
             raise ValueError("budgets and session questions must be at least 1")
-
-
-# the grid's axes besides task and seed, with the value a row written before the axis
-# existed stands for (a new axis: a `Cell` field, an entry here, a `_row` key)
-AXES = {
-    "scheme": None,
-    "teacher": None,
-    "learner": "plain",
-    "augment": "full",
-    "weighting": "reliability",
-}
-
-
-@dataclass(frozen=True)
-class Cell:
-    scheme: str
-    teacher: str
-    seed: int
-    learner: str = "plain"
-    augment: str = "full"  # checked: noise-aware augmentation (seqrank.feedback.checking)
-    weighting: str = "reliability"  # a crowd's labels (`--crowd-weighting`): or none
-
-    def key(self, task: str) -> tuple[Any, ...]:
-        return (task, *(getattr(self, axis) for axis in AXES), self.seed)
-
-
-def row_key(row: dict[str, Any]) -> tuple[Any, ...]:
-    """The cell a row belongs to, as `Cell.key` gives it."""
-    return (row["task"], *(row.get(axis, default) for axis, default in AXES.items()), row["seed"])
 
 
 def heldout_measures(model: RewardModel, heldout: Segments) -> dict[str, float]:

@@ -13,7 +13,8 @@ from itertools import product
 from pathlib import Path
 from typing import Any
 
-from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, row_key, run_cell
+from seqrank.rewardbench.bench import BenchSettings, RewardNet, run_cell
+from seqrank.rewardbench.cells import Cell, row_key
 from seqrank.rewardbench.pool import load_pool
 from seqrank.rows import read_rows
 
@@ -105,23 +106,20 @@ class Grid:
         rows_path.write_text("".join(json.dumps(r) + "\n" for r in rows))  # drop a cut line
         done = {row_key(r) for r in rows}
         # seed by seed: a grid stopped part way leaves every combination with the same seeds
-        todo = [
-            (path, cell)
-            for seed, path, teacher, learner, augment, weighting, scheme in product(
-                seeds, self.tasks, teachers, learners, augments, weightings, schemes
-            )
-            if (cell := Cell(scheme, teacher, seed, learner, augment, weighting)).key(
-                self.tasks[path]
-            )
-            not in done
-        ]
+        todo: dict[tuple[Any, ...], tuple[str, Cell]] = {}  # a cell once, whatever weighs it
+        for seed, path, teacher, learner, augment, weighting, scheme in product(
+            seeds, self.tasks, teachers, learners, augments, weightings, schemes
+        ):
+            cell = Cell(scheme, teacher, seed, learner, augment, weighting)
+            if (key := cell.key(self.tasks[path])) not in done:
+                todo.setdefault(key, (path, cell))
         total, finished = len(todo) + len(done), len(done)
         if progress is not None:
             progress(finished, total)
         record = settings_record(self.settings)
         with ProcessPoolExecutor(max(1, workers)) as executor:
             running: set[Future[list[dict[str, Any]]]] = {
-                executor.submit(_cell_rows, path, cell, record) for path, cell in todo
+                executor.submit(_cell_rows, path, cell, record) for path, cell in todo.values()
             }
             while running:
                 complete, running = wait(running, return_when=FIRST_COMPLETED)

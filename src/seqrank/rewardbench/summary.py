@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from seqrank.feedback.schemes import SchemeName
+from seqrank.rewardbench.cells import weighs_labels
 from seqrank.rewardbench.intervals import Interval, bounded_interval
 
 MEASURES = {
@@ -21,13 +22,14 @@ Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questio
 
 
 def method(row: dict[str, Any]) -> str:
-    """The reward learner, with `+checked` under noise-aware augmentation and
-    `+unweighted` for a crowd's labels taken as answered (rows written before these axes
-    are plain, full and weighted)."""
+    """The reward learner, with `+checked` under noise-aware augmentation and `+weighted`
+    for a crowd's labels weighted by reliability: the names of the defaults (full closure,
+    a crowd's labels as answered) are bare, so a report's baseline is the default. Rows
+    written before these axes are plain, full and weighted."""
     learner = row.get("learner", "plain")
     learner = learner if row.get("augment", "full") == "full" else f"{learner}+checked"
-    crowd = str(row.get("teacher", "")).startswith("crowd:")
-    return f"{learner}+unweighted" if crowd and row.get("weighting") == "none" else learner
+    weighted = weighs_labels(row.get("teacher", "")) and row.get("weighting") != "none"
+    return f"{learner}+weighted" if weighted else learner
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
