@@ -245,6 +245,19 @@ class CrowdTables:
         )  # fmt: skip
         return k + 1, int(rows[0]["budget"]) if rows else k + 1
 
+    def restart_clocks(self) -> int:
+        """The server starts: every question held and not answered starts its wait for
+        `reassign_after` again now, so time the server was down never counts toward a
+        hand-over. Returns how many were waiting."""
+        now = time.time()
+        with self.db.transaction() as conn:
+            restarted = conn.execute(
+                "UPDATE crowd_questions SET assigned_at = ? WHERE assigned_at < ? AND "
+                "withdrawn_at IS NULL AND question_id NOT IN (SELECT question_id FROM answers)",
+                (now, now),
+            )
+            return restarted.rowcount
+
     def withdraw_if_unanswered(self, question_id: int) -> bool:
         """Hand a question back (its chain is cut): True unless it was answered first."""
         with self.db.transaction() as conn:

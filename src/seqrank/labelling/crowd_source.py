@@ -12,6 +12,8 @@ those unanswered when the chains are done are withdrawn.
 Replay after a kill works as for one person (`seqrank.labelling.human`): pools, chains,
 choices, questions and hand-overs are stored before they are used, so the same session
 asks the same questions again and stored answers come back at once.
+The clocks of questions pending at the kill restart at the server's start: downtime never
+hands a question over.
 """
 
 from __future__ import annotations
@@ -46,8 +48,10 @@ from seqrank.types import Answer, AnsweredQuestion, Question
 
 def open_team(hub: Hub, names: Sequence[str], overlap: float, reassign_after: float) -> None:
     """Make `hub` a team's page: each annotator with their own token (kept in the database,
-    so that a resumed run's addresses stay the same), the main token the operator's."""
+    so that a resumed run's addresses stay the same), the main token the operator's; the
+    questions pending when the server stopped wait `reassign_after` again from now."""
     tables = CrowdTables(hub.db)
+    tables.restart_clocks()  # the time the server was down is nobody's delay
     known = tables.annotators()
     tables.add_annotators({n: known.get(n) or secrets.token_urlsafe(18) for n in names})
     stored = tables.annotators()
