@@ -4,7 +4,6 @@ off-policy agent samples (PEBBLE computes it per batch, against every stored sta
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import torch
@@ -46,31 +45,56 @@ def reset_critic(model: BaseAlgorithm, updates: int) -> None:
         model.train(gradient_steps=updates, batch_size=model.batch_size)
 
 
+class EntropySample:
+    """The replay buffer's `sample` while pre-training: SB3's own batch, its rewards the
+    state-entropy reward (k-NN distance of each observation to every stored one, over the
+    running standard deviation: `reward.entropy`).
+
+    A module-level object, not a closure, so the buffer pickles at any step (SB3's
+    `save_replay_buffer`, `CheckpointCallback(save_replay_buffer=True)`); it pickles as the
+    buffer's own `sample` method, so a buffer saved during pre-training loads as SB3 made
+    it, with no seqrank state inside."""
+
+    def __init__(self, table: ReplayTable, knn_k: int, stats: RunningMeanStd, original: Any):
+        self.table, self.knn_k, self.stats, self.original = table, knn_k, stats, original
+
+    def __call__(self, batch_size: int, env: Any = None) -> Any:
+        batch = self.original(batch_size, env)
+        stored = self.table.stored_observations().to(batch.observations.device)
+        queries = batch.observations.reshape(len(batch.observations), -1).float()
+        reward = intrinsic_reward(queries, stored, self.knn_k, self.stats)
+        return batch._replace(rewards=reward.to(batch.rewards.dtype))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # unpickled while the buffer's own attributes are not yet restored: the class's method
+        return (getattr, (self.table.buffer, "sample"))
+
+
 class EntropyBatches:
     """While installed, each batch an off-policy agent samples carries the state-entropy
-    reward (k-NN distance of its observations to every stored one, over its running
-    standard deviation: `reward.entropy`). Installed on the buffer object itself, and taken
-    off before the buffer is saved."""
+    reward (`EntropySample`, set as the buffer's `sample`); removed at the first session
+    and when training ends, which puts back the buffer's own `sample`."""
 
     def __init__(self, knn_k: int, stats: RunningMeanStd):
         self.knn_k, self.stats = knn_k, stats
         self._installed: ReplayTable | None = None
+        self._own: Any = None  # a `sample` the buffer object had of its own, put back
 
     def install(self, table: ReplayTable) -> None:
         self.remove()
-        original: Callable[..., Any] = table.buffer.sample
-
-        def sample(batch_size: int, env: Any = None) -> Any:
-            batch = original(batch_size, env)
-            stored = table.stored_observations().to(batch.observations.device)
-            queries = batch.observations.reshape(len(batch.observations), -1).float()
-            reward = intrinsic_reward(queries, stored, self.knn_k, self.stats)
-            return batch._replace(rewards=reward.to(batch.rewards.dtype))
-
-        table.buffer.sample = sample  # type: ignore[method-assign]
+        buffer = table.buffer
+        self._own = vars(buffer).get("sample")
+        buffer.sample = EntropySample(  # type: ignore[method-assign]
+            table, self.knn_k, self.stats, buffer.sample
+        )
         self._installed = table
 
     def remove(self) -> None:
-        if self._installed is not None:
-            del self._installed.buffer.sample  # the class's own method again
-            self._installed = None
+        if self._installed is None:
+            return
+        buffer = self._installed.buffer
+        if self._own is None:
+            del buffer.sample  # the class's own method again
+        else:
+            buffer.sample = self._own  # type: ignore[method-assign]
+        self._installed = self._own = None
