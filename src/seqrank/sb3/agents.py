@@ -1,6 +1,7 @@
 """What the feedback does to an SB3 agent: PEBBLE's critic reset after the first session,
 and, before it, the state-entropy reward of unsupervised pre-training in the batches an
-off-policy agent samples (PEBBLE computes it per batch, against every stored state)."""
+off-policy agent samples (PEBBLE computes it per batch, against every stored state); and
+whether the agent acts on the feedback's environment at all."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from typing import Any
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
 from seqrank.reward.entropy import RunningMeanStd, intrinsic_reward
@@ -17,6 +19,16 @@ from seqrank.sb3.tables import ReplayTable
 
 def is_off_policy(model: BaseAlgorithm) -> bool:
     return isinstance(model, OffPolicyAlgorithm)
+
+
+def acts_on(model: BaseAlgorithm, env: VecEnv) -> bool:
+    """Whether `model` steps `env`, directly or through wrappers of it (VecNormalize, ...)."""
+    venv: Any = model.get_env()
+    while venv is not None:
+        if venv is env:
+            return True
+        venv = getattr(venv, "venv", None)
+    return False
 
 
 def critic_parts(model: BaseAlgorithm) -> tuple[nn.Module, nn.Module, torch.optim.Optimizer]:

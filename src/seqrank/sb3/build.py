@@ -8,7 +8,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.env_util import is_wrapped
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from seqrank.envs import SimEnv, canonical_task, make_env
 from seqrank.envs.gym_env import GymEnv
@@ -22,8 +24,9 @@ GYM_PRESETS = "gym:Pendulum-v1"  # whose presets an environment object's feedbac
 
 @dataclass
 class Task:
-    """The environment to learn in: seqrank `SimEnv`s (a task name or a Gymnasium env),
-    or a VecEnv the user made (`sims` None: no per-episode seeds or physics states)."""
+    """The environment to learn in: seqrank `SimEnv`s (a task name or a Gymnasium env with
+    a Box action space), or a VecEnv: the user's, or one made of a Gymnasium env with a
+    Discrete action space (`sims` None: no per-episode seeds or physics states)."""
 
     name: str
     preset_task: str
@@ -40,11 +43,20 @@ def describe_task(env: Any, n_envs: int, seed: int) -> Task:
     name, preset = task_names(env)
     if isinstance(env, str):
         return _of_sims(name, preset, [make_env(env, seed) for _ in range(n_envs)])
-    if isinstance(env, VecEnv):
+    if not isinstance(env, VecEnv | SimEnv) and isinstance(env.action_space, gym.spaces.Discrete):
+        env = _vec_env_of_one(env)  # its actions need no rescaling: as SB3 itself takes it
+    if isinstance(env, VecEnv):  # used as it is
         obs, act = observation_dim(env.observation_space), action_dim(env.action_space)
         return Task(name, preset, None, env, obs, act, None, True)
     sim = env if isinstance(env, SimEnv) else GymEnv(env, name)
     return _of_sims(name, preset, [sim])
+
+
+def _vec_env_of_one(env: gym.Env[Any, Any]) -> DummyVecEnv:
+    """A Gymnasium env in a VecEnv of one, with SB3's Monitor (the true episode return in
+    `info["episode"]`) unless it has one: as SB3 wraps an Env it is given."""
+    monitored = env if is_wrapped(env, Monitor) else Monitor(env)
+    return DummyVecEnv([lambda: monitored])
 
 
 def _of_sims(name: str, preset_task: str, sims: list[SimEnv]) -> Task:

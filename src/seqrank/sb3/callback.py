@@ -48,8 +48,9 @@ class PreferenceFeedback(BaseCallback):
 
     Args:
         env: a seqrank task name (`walker_walk`, `dmc:...`, `gym:ID`, ...), a
-            gymnasium.Env or an SB3 VecEnv. For a name or an Env, actions are rescaled to
-            [-1, 1] as seqrank's agents act; a VecEnv is used as it is.
+            gymnasium.Env or an SB3 VecEnv. For a name or an Env with a Box action space,
+            actions are rescaled to [-1, 1] as seqrank's agents act; an Env with a Discrete
+            action space (for DQN, A2C, PPO) and a VecEnv are used as they are.
         teacher: who answers: a `seqrank train --teacher` value (default oracle; `human`:
             a person at the labelling page), a `FeedbackSource`, or a judge function of
             two `seqrank.Segment`s.
@@ -242,6 +243,12 @@ class PreferenceFeedback(BaseCallback):
     # ---- SB3's callback hooks ----------------------------------------------------------
     def _init_callback(self) -> None:
         model, kind = self.model, type(self.model).__name__
+        if not agents.acts_on(model, self.env):
+            raise ValueError(
+                f"the agent's environment is not feedback.env: make it on feedback.env, "
+                f"{kind}('MlpPolicy', feedback.env, ...), which gives it the learned reward "
+                "and records the episodes the questions are about"
+            )
         off_policy = agents.is_off_policy(model)
         self.pretraining = pebble_default(
             kind, self.options["pretrain"], not off_policy, "pretrain"
@@ -309,7 +316,7 @@ def _resolve(
     name: str, preset: str, scale: str, settings: dict[str, Any], pretrain: bool | None
 ) -> TrainConfig:
     """The feedback's run config; a budget that only the default pre-training makes
-    impossible says how to drop it (the agent, on-policy or not, is not known yet)."""
+    impossible says how to drop it (the agent, SAC or not, is not known yet)."""
     try:
         return feedback_config(name, preset, scale, settings)
     except SettingError as problem:
@@ -317,7 +324,8 @@ def _resolve(
         if pretraining_by_default and "impossible budget" in str(problem):
             raise SettingError(
                 f"{problem} (the steps count the pre-training SAC and TD3 do by default; "
-                "for an on-policy agent, PPO or A2C, pass pretrain=False)"
+                "for an agent that does not pre-train, DQN, PPO, A2C or another, pass "
+                "pretrain=False)"
             ) from None
         raise
 
