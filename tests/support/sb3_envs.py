@@ -13,11 +13,11 @@ SENTINEL = 1e9  # the true reward of `make_sentinel`: never seen by an agent
 
 class Line(gym.Env[np.ndarray, np.ndarray]):
     """A point on a line that should stay at a target: observation (x, target), action a
-    step of at most 0.2; reward minus the distance."""
+    step of at most 0.2 (the first of `act_dim` numbers); reward minus the distance."""
 
-    def __init__(self, sentinel: bool = False):
+    def __init__(self, sentinel: bool = False, act_dim: int = 1):
         self.observation_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (act_dim,), np.float32)
         self.sentinel = sentinel
         self._x = self._target = 0.0
 
@@ -44,3 +44,8 @@ def make_line() -> gym.Env[np.ndarray, np.ndarray]:
 def make_sentinel() -> gym.Env[np.ndarray, np.ndarray]:
     """The line whose true reward is a huge constant: an agent that saw it would store it."""
     return gym.wrappers.TimeLimit(Line(sentinel=True), max_episode_steps=EPISODE)
+
+
+def make_wide_line() -> gym.Env[np.ndarray, np.ndarray]:
+    """The line with a 3-number action (only the first moves the point)."""
+    return gym.wrappers.TimeLimit(Line(act_dim=3), max_episode_steps=EPISODE)

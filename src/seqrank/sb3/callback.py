@@ -25,7 +25,7 @@ from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
 from seqrank.sb3.build import describe_task, make_teacher, task_names
-from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, canonical_actions, task_vec_env
+from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, reward_batch, task_vec_env
 from seqrank.sb3.run import FeedbackRun
 from seqrank.sb3.settings import feedback_config, pebble_default, without_pretraining
 from seqrank.sb3.streams import restore_rng
@@ -165,15 +165,17 @@ class PreferenceFeedback(BaseCallback):
         """The learned reward (ensemble mean) of a batch, as the agent gets it.
 
         Args:
-            observations: (N, obs_dim).
-            actions: (N, act_dim), or (N,) action indices of a discrete space, as
-                `feedback.env` takes them: in its action space, which for a task name or a
-                gymnasium.Env is [-1, 1] already. SB3's replay buffer keeps a Box action
-                scaled to [-1, 1]: for a VecEnv of another range, pass
-                `model.policy.unscale_action(actions)`.
+            observations: (N, obs_dim), or (N, *observation shape).
+            actions: (N, act_dim) (or (N,) for a one-number action), or (N,) action
+                indices of a discrete space, as `feedback.env` takes them: in its action
+                space, which for a task name or a gymnasium.Env with a Box action space is
+                [-1, 1] already. SB3's replay buffer keeps a Box action scaled to [-1, 1]:
+                for a VecEnv of another range, pass `model.policy.unscale_action(actions)`.
 
         Returns:
-            (N,) rewards; 0 before the first session. ValueError unless a batch.
+            (N,) rewards; 0 before the first session. A batch of other shapes (before the
+                first session too) raises a ValueError naming the expected and received
+                shapes.
 
         Examples:
             >>> import numpy as np
@@ -182,13 +184,9 @@ class PreferenceFeedback(BaseCallback):
             >>> feedback.reward(np.zeros((2, 3)), np.zeros((2, 1)))  # no session yet
             array([0., 0.], dtype=float32)
         """
-        obs = np.asarray(observations, np.float32)
-        if obs.ndim != 2 or len(obs) != len(actions):
-            raise ValueError(
-                f"reward() takes a batch: observations (N, {self.run.obs_dim}) and N actions; "
-                f"got observations of shape {obs.shape} and {len(actions)} actions"
-            )
-        return self.run.learned_reward(obs, canonical_actions(self.env.action_space, actions))
+        space = self.env.action_space
+        obs, acts = reward_batch(self.env.observation_space, space, observations, actions)
+        return self.run.learned_reward(obs, acts)
 
     def save(self, path: str | Path) -> None:
         """Save settings, labels, reward model, episodes, counters and random streams.

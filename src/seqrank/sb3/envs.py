@@ -68,13 +68,45 @@ def canonical_actions(space: gym.spaces.Space[Any], actions: np.ndarray) -> np.n
     """Actions as the reward model reads them: a Box's scaled to [-1, 1] (what SB3's
     off-policy agents store), a Discrete's one-hot. (N, act_dim) float32."""
     if isinstance(space, gym.spaces.Discrete):
-        return np.eye(int(space.n), dtype=np.float32)[np.asarray(actions).reshape(-1)]
+        indices = np.asarray(actions).reshape(-1).astype(np.int64)
+        return np.eye(int(space.n), dtype=np.float32)[indices]
     assert isinstance(space, gym.spaces.Box)
     low, high = space.low.reshape(-1), space.high.reshape(-1)
     flat = np.asarray(actions, np.float64).reshape(len(actions), -1)
     if np.all(np.isfinite(low)) and np.all(np.isfinite(high)):
         flat = 2.0 * (flat - low) / (high - low) - 1.0
     return np.clip(flat, -1.0, 1.0).astype(np.float32)
+
+
+def reward_batch(
+    obs_space: gym.spaces.Space[Any], act_space: gym.spaces.Space[Any], obs: Any, actions: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """(N, obs_dim) observations and (N, act_dim) canonical actions of a batch in the
+    spaces' shapes (actions (N,) of a one-number Box too; a Discrete's indices (N,) or
+    (N, 1)); a ValueError naming the expected and received shapes otherwise."""
+    obs, actions = np.asarray(obs), np.asarray(actions)
+    obs_dim, act_dim = observation_dim(obs_space), action_dim(act_space)
+    discrete = isinstance(act_space, gym.spaces.Discrete)
+    if discrete:
+        act_text, act_shapes = f"(N,), indices from 0 to {act_dim - 1}", {(), (1,)}
+    else:
+        act_text, act_shapes = f"(N, {act_dim})", {(act_dim,), tuple(act_space.shape or ())}
+        act_shapes |= {()} if act_dim == 1 else set()
+    expected = f"reward() takes a batch: observations (N, {obs_dim}) and actions {act_text}"
+    fits = obs.ndim >= 1 and actions.ndim >= 1 and len(obs) == len(actions)
+    fits = fits and obs.shape[1:] in {(obs_dim,), tuple(obs_space.shape or ())}
+    if not fits or actions.shape[1:] not in act_shapes:
+        raise ValueError(f"{expected}; got observations {obs.shape} and actions {actions.shape}")
+    for name, values in (("observations", obs), ("actions", actions)):
+        if values.dtype.kind not in "biuf":
+            raise ValueError(f"{expected}; got {name} of {values.dtype}, not numbers")
+    if discrete:
+        flat = actions.reshape(-1)
+        whole = np.all(np.isfinite(flat)) and np.all(flat == np.round(flat))
+        if not (whole and np.all((flat >= 0) & (flat < act_dim))):
+            raise ValueError(f"{expected}; got actions {flat}")
+    flat_obs = obs.reshape(len(obs), -1).astype(np.float32)
+    return flat_obs, canonical_actions(act_space, actions)
 
 
 def action_dim(space: gym.spaces.Space[Any]) -> int:
