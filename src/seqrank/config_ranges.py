@@ -53,7 +53,10 @@ def check_setting(name: str, kind: str, value: Any) -> None:
     holds a value in its range."""
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
-            raise SettingError(f"{setting(name)} must be a whole number, got {value!r}")
+            raise SettingError(
+                f"{setting(name)} must be a whole number (an int), got {value!r} "
+                f"({type(value).__name__})"
+            )
         low = 0 if name in FROM_ZERO else 1
         high = MAX.get(name, MAX_COUNT)
         if not low <= value <= high:
@@ -62,7 +65,9 @@ def check_setting(name: str, kind: str, value: Any) -> None:
             )
         return
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SettingError(f"{setting(name)} must be a number, got {value!r}")
+        raise SettingError(
+            f"{setting(name)} must be a number, got {value!r} ({type(value).__name__})"
+        )
     unit, zero = name in AT_MOST_ONE, name in FROM_ZERO
     too_low = value < 0 or (value == 0 and not zero)
     if not math.isfinite(value) or too_low or (unit and value > 1):

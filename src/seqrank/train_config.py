@@ -7,7 +7,8 @@ is resolved and checked is `seqrank.config`'s; the rules between settings are
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+import numbers
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from seqrank.choices import (
@@ -49,6 +50,18 @@ CHOICES: dict[str, type[Any]] = {
     "reward_learner": RewardLearner,
     "crowd_weighting": CrowdWeighting,
 }
+
+
+def plain_number(value: Any) -> Any:
+    """A number of another library (numpy's int64, float32, ...) as Python's int or float;
+    anything else as it is (a bool, a text: the range check names it)."""
+    if isinstance(value, bool) or type(value) in (int, float):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    return value
 
 
 @dataclass(frozen=True)
@@ -180,6 +193,9 @@ class TrainConfig:
     heldout_pairs: int = 500
 
     def __post_init__(self) -> None:
+        for f in fields(self):  # numpy's numbers as Python's: a config is saved as JSON
+            if f.type in ("int", "float"):
+                object.__setattr__(self, f.name, plain_number(getattr(self, f.name)))
         for name, kind in CHOICES.items():
             object.__setattr__(self, name, parse_choice(kind, getattr(self, name), name))
         parse_teacher(self.teacher)

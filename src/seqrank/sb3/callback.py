@@ -21,13 +21,19 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 import seqrank.sb3.agents as agents
 import seqrank.sb3.saving as saving
 from seqrank.config import TrainConfig
-from seqrank.errors import SettingError, setting
+from seqrank.errors import SettingError
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
 from seqrank.sb3.build import describe_task, make_teacher, task_names
 from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, reward_batch, task_vec_env
 from seqrank.sb3.run import FeedbackRun
-from seqrank.sb3.settings import feedback_config, pebble_default, without_pretraining
+from seqrank.sb3.settings import (
+    check_page_keywords,
+    feedback_config,
+    pebble_default,
+    sb3_options,
+    without_pretraining,
+)
 from seqrank.sb3.streams import restore_rng
 from seqrank.sb3.tables import EpisodeTable, ReplayTable
 from seqrank.training.feedback_phase import feedback_step, learn_from_session
@@ -108,18 +114,21 @@ class PreferenceFeedback(BaseCallback):
     ):
         super().__init__(verbose)
         name, preset = task_names(env)
+        self.options = options = sb3_options(
+            env, pretrain=pretrain, reset_critic=reset_critic, n_envs=n_envs,
+            wait_for_feedback=wait_for_feedback,
+        )  # fmt: skip
         spec = teacher if isinstance(teacher, str) else "oracle"
-        human = spec == "human"
-        extra: dict[str, Any] = {"record_states": 1} if human else {}
-        if pretrain is False:  # no pre-training phase: the first session after seed_steps
+        extra: dict[str, Any] = {"record_states": 1} if spec == "human" else {}
+        if options["pretrain"] is False:  # no pre-training: the first session after seed_steps
             extra["unsup_steps"] = 0
-        self.given = _resolve(name, preset, scale, {"teacher": spec, **settings, **extra}, pretrain)
+        self.given = _resolve(
+            name, preset, scale, {"teacher": spec, **settings, **extra}, options["pretrain"]
+        )
+        check_page_keywords(env, teacher, label_dir, page)
         self.from_task_name = isinstance(env, str)
-        _check_options(n_envs, human, label_dir, env)
-        self.options: dict[str, Any] = {"pretrain": pretrain, "reset_critic": reset_critic}
-        self.options.update(n_envs=n_envs, wait_for_feedback=wait_for_feedback)
         self.config = config = self.given
-        task = describe_task(env, n_envs, config.seed)
+        task = describe_task(env, options["n_envs"], config.seed)
         if task.episode_length is not None:
             check_episode_fits(config, task.episode_length, task.has_terminals)
         self.task = task
@@ -133,7 +142,7 @@ class PreferenceFeedback(BaseCallback):
         device = resolve_device(config.device)
         self.run = FeedbackRun(
             config, source, task.obs_dim, task.act_dim, task.episode_length or 1, device,
-            wait_for_feedback,
+            options["wait_for_feedback"],
         )  # fmt: skip
         venv = task.venv if task.venv is not None else task_vec_env(task.sims or [], config.seed)
         self.seeded = [
@@ -326,18 +335,3 @@ def _resolve(
                 "pretrain=False)"
             ) from None
         raise
-
-
-def _check_options(n_envs: int, human: bool, label_dir: Any, env: Any) -> None:
-    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
-        raise SettingError(f"{setting('n_envs')} must be a whole number from 1, got {n_envs!r}")
-    if n_envs > 1 and not isinstance(env, str):
-        raise SettingError(
-            f"{setting('n_envs')} {n_envs} makes environments of a task name; for your own "
-            "environment pass a VecEnv of as many"
-        )
-    if human and (label_dir is None or not isinstance(env, str)):
-        raise SettingError(
-            f"{setting('teacher')} 'human' answers on the labelling page: give a task name "
-            "(its clips are re-rendered) and label_dir, the folder of the label database"
-        )

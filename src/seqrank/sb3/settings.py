@@ -8,8 +8,11 @@ model's, so they are refused here, naming where they go instead.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import fields, replace
 from typing import Any
+
+import numpy as np
 
 from seqrank.config import TrainConfig, resolve_config
 from seqrank.errors import SettingError, setting
@@ -128,3 +131,55 @@ def pebble_default(agent: str, wanted: bool | None, on_policy: bool, name: str) 
             f"critic to reset); accepted for {agent}: False or None"
         )
     return agent in PEBBLE_AGENTS if wanted is None else bool(wanted)
+
+
+def sb3_options(env: Any, **given: Any) -> dict[str, Any]:
+    """`PreferenceFeedback`'s own keywords checked, as Python's types: `pretrain` and
+    `reset_critic` True, False or None, `wait_for_feedback` True or False, `n_envs` a whole
+    number from 1 (more only for a task name)."""
+    options: dict[str, Any] = {
+        name: _flag(name, given[name], True) for name in ("pretrain", "reset_critic")
+    }
+    options["wait_for_feedback"] = _flag("wait_for_feedback", given["wait_for_feedback"], False)
+    options["n_envs"] = _n_envs(given["n_envs"], env)
+    return options
+
+
+def check_page_keywords(env: Any, teacher: Any, label_dir: Any, page: Any) -> None:
+    """`label_dir` and `page` go with `teacher="human"` (and it needs `label_dir`)."""
+    human = isinstance(teacher, str) and teacher == "human"
+    for name, value in (("label_dir", label_dir), ("page", page)):
+        if value is not None and not human:
+            told = teacher if isinstance(teacher, str) else type(teacher).__name__
+            raise SettingError(
+                f"{setting(name)} is for teacher='human' only (the labelling page), but the "
+                f"teacher is {told!r}: leave {name} out, or pass teacher='human'"
+            )
+    if human and (label_dir is None or not isinstance(env, str)):
+        raise SettingError(
+            f"{setting('teacher')} 'human' answers on the labelling page: give a task name "
+            "(its clips are re-rendered) and label_dir, the folder of the label database"
+        )
+
+
+def _flag(name: str, value: Any, optional: bool) -> bool | None:
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if value is None and optional:
+        return None
+    accepted = (
+        "True, False or None (None: on for SAC and TD3 only)" if optional else "True or False"
+    )
+    raise SettingError(f"{setting(name)} must be {accepted}, got {value!r}")
+
+
+def _n_envs(value: Any, env: Any) -> int:
+    count = int(value) if isinstance(value, numbers.Integral) else 0
+    if isinstance(value, bool) or count < 1:
+        raise SettingError(f"{setting('n_envs')} must be a whole number from 1, got {value!r}")
+    if count > 1 and not isinstance(env, str):
+        raise SettingError(
+            f"{setting('n_envs')} {count} makes environments of a task name; for your own "
+            "environment pass a VecEnv of as many"
+        )
+    return count
