@@ -9,7 +9,7 @@ import numpy as np
 from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
-from support.sb3_runs import SMALL_SAC, feedback
+from support.sb3_runs import feedback, small_sac
 
 
 class PretrainingBatch(BaseCallback):
@@ -27,21 +27,21 @@ class PretrainingBatch(BaseCallback):
 
 def test_sb3s_checkpoint_callback_saves_the_replay_buffer_before_and_after_sessions(tmp_path):
     taught = feedback(steps=1400, max_feedback=30)  # pre-training to step 500, then a session
-    model = SAC("MlpPolicy", taught.env, seed=0, **SMALL_SAC)
+    model = SAC("MlpPolicy", taught.env, seed=0, **small_sac())
     saver = CheckpointCallback(save_freq=300, save_path=str(tmp_path), save_replay_buffer=True)
     probe = PretrainingBatch(at=301)
     model.learn(700, callback=[taught, saver, probe])
 
     assert taught.run.counters.sessions == 1  # at step 500: between the two checkpoints
     assert np.all(probe.rewards > 0)  # still the entropy reward after the first save
-    before = SAC("MlpPolicy", taught.env, **SMALL_SAC)
+    before = SAC("MlpPolicy", taught.env, **small_sac())
     before.load_replay_buffer(tmp_path / "rl_model_replay_buffer_300_steps.pkl")
     saved = before.replay_buffer
     assert saved.pos == 299  # SB3 saves in `on_step`, before storing the step's transition
     np.testing.assert_array_equal(saved.observations[:299], model.replay_buffer.observations[:299])
     assert np.all(saved.sample(16).rewards.numpy() == 0)  # SB3's own batches: 0 before a session
 
-    after = SAC("MlpPolicy", taught.env, **SMALL_SAC)
+    after = SAC("MlpPolicy", taught.env, **small_sac())
     after.load_replay_buffer(tmp_path / "rl_model_replay_buffer_600_steps.pkl")
     relabelled = after.replay_buffer.rewards[:599]
     np.testing.assert_array_equal(relabelled, model.replay_buffer.rewards[:599])

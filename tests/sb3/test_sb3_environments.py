@@ -12,7 +12,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from seqrank.sb3 import PreferenceFeedback
 from support.sb3_envs import make_line
-from support.sb3_runs import LINE, SMALL_SAC, TINY, feedback
+from support.sb3_runs import LINE, TINY, feedback, small_sac
 
 NOT_ON_FEEDBACK_ENV = r"^the agent's environment is not feedback\.env: make it on feedback\.env"
 
@@ -20,7 +20,7 @@ NOT_ON_FEEDBACK_ENV = r"^the agent's environment is not feedback\.env: make it o
 @pytest.mark.parametrize("agent", [SAC, PPO])
 def test_an_agent_made_on_the_users_own_env_is_told_to_use_feedback_env(agent):
     taught = feedback()
-    options = SMALL_SAC if agent is SAC else dict(n_steps=64, batch_size=32)
+    options = small_sac() if agent is SAC else dict(n_steps=64, batch_size=32)
     model = agent("MlpPolicy", make_line(), seed=0, **options)
     with pytest.raises(ValueError, match=NOT_ON_FEEDBACK_ENV) as refused:
         model.learn(50, callback=taught)
@@ -30,7 +30,7 @@ def test_an_agent_made_on_the_users_own_env_is_told_to_use_feedback_env(agent):
 
 def test_an_agent_on_a_wrapper_of_feedback_env_learns():
     taught = feedback()
-    model = SAC("MlpPolicy", VecNormalize(taught.env), seed=0, **SMALL_SAC)
+    model = SAC("MlpPolicy", VecNormalize(taught.env), seed=0, **small_sac())
     model.learn(50, callback=taught)
     assert model.num_timesteps == 50
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 from seqrank.sb3 import PreferenceFeedback
@@ -20,6 +21,12 @@ TINY = dict(
     device="cpu",
 )
 SMALL_SAC = dict(policy_kwargs=dict(net_arch=[32, 32]), batch_size=64, learning_starts=100)
+
+
+def small_sac() -> dict[str, Any]:
+    """A copy of SMALL_SAC: SB3's SAC writes `use_sde` into the policy_kwargs it is given,
+    which TD3 then refuses."""
+    return copy.deepcopy(SMALL_SAC)
 
 
 def feedback(task: str = LINE, **settings: Any) -> PreferenceFeedback:
