@@ -5,6 +5,8 @@ of a replayed label file by `resolve_config`, which knows the settings the user 
 from __future__ import annotations
 
 import json
+import re
+import unicodedata
 from collections.abc import Collection
 from dataclasses import fields
 from pathlib import Path
@@ -78,21 +80,47 @@ def check_crowd(config: TrainConfig) -> None:
         )
 
 
+ANNOTATOR_NAME = re.compile(r"[A-Za-z][A-Za-z0-9._-]{0,39}")  # ASCII only: no look-alikes
+NAME_RULE = (
+    "use ASCII letters, digits, '-', '_' and '.', starting with a letter, at most 40 "
+    "characters; 'operator' is reserved"
+)
+
+
 def check_annotator_names(names: str, option: str) -> tuple[str, ...]:
-    """A team's names, comma-separated: each letters, digits, - and _, once."""
+    """A team's names, comma-separated: each ASCII letters, digits, '-', '_' and '.',
+    starting with a letter (so no two names look alike: `аlice` with a Cyrillic а is
+    refused), at most 40 characters, not `operator` (the operator's page), each once
+    whatever its case."""
+    shown = ascii(names)  # a look-alike shows as the escape it is: '\u0430lice'
     team = tuple(name.strip() for name in names.split(","))
+    seen: dict[str, str] = {}
     for name in team:
-        if not name or not name.replace("-", "").replace("_", "").isalnum() or len(name) > 40:
+        if not ANNOTATOR_NAME.fullmatch(name):
             raise SettingError(
-                f"{option} {names!r}: {name!r} is not a name; use letters, digits, - and _ "
-                "(at most 40), comma-separated: alice,bob,carol"
+                f"{option} {shown}: {name!a} is not a name{_outside(name)}; {NAME_RULE} "
+                "(comma-separated: alice,bob,carol)"
             )
-    repeated = sorted({name for name in team if team.count(name) > 1})
-    if repeated:
-        raise SettingError(
-            f"{option} {names!r}: {', '.join(repeated)} given twice; names are unique"
-        )
+        if name.lower() == "operator":
+            raise SettingError(
+                f"{option} {shown}: {name!r} is reserved for the operator's page; give the "
+                "annotator another name"
+            )
+        earlier = seen.get(name.lower())
+        if earlier is not None:
+            spelled = "" if earlier == name else f" (as {earlier}: case is not told apart)"
+            raise SettingError(f"{option} {shown}: {name} given twice{spelled}; names are unique")
+        seen[name.lower()] = name
     return team
+
+
+def _outside(name: str) -> str:
+    """Which character of a refused name is outside the accepted set, if one is."""
+    for character in name:
+        if not (character.isascii() and (character.isalnum() or character in "._-")):
+            label = unicodedata.name(character, f"U+{ord(character):04X}")
+            return f": {character!a} ({label}) is not accepted"
+    return ""
 
 
 def check_learner(config: TrainConfig) -> None:
