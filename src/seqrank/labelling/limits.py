@@ -9,6 +9,10 @@
   echoes the input, a rejected 10 MB body whole, and fails (500) on input that is not
   valid unicode or JSON-encodable.
 - A busy database answers 503 with Retry-After, which the page retries.
+- Every refusal, of these rules or of a route (an annotator on the operator's endpoints,
+  an answer to somebody else's question, a body that does not parse), is logged as the
+  access guard's are (`access.log_refusal`): method, path, status and reason, escaped,
+  never the body.
 """
 
 from __future__ import annotations
@@ -18,13 +22,15 @@ import unicodedata
 from typing import Annotated, Any
 
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from pydantic import Field
 from starlette.datastructures import Headers
-from starlette.responses import JSONResponse
+from starlette.exceptions import HTTPException
+from starlette.responses import JSONResponse, Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from seqrank.labelling.access import SAFE_METHODS, log_refusal
+from seqrank.labelling.access import OPERATOR, SAFE_METHODS, log_refusal
 
 MAX_BODY_BYTES = 64 * 1024
 MAX_ID = 2**53 - 1  # the largest integer JavaScript's numbers hold exactly
@@ -135,7 +141,38 @@ async def _invalid_request(request: Request, problem: Exception) -> JSONResponse
         for item in problem.errors()[:MAX_PROBLEMS]
     ]
     detail = "; ".join(f"{'.'.join(p['loc'])}: {p['msg']}" for p in problems)
+    _log_refusal(request, 422, _unechoed(problem) or "invalid request")
     return error(422, detail or "invalid request", errors=problems)
+
+
+def _unechoed(problem: RequestValidationError) -> str:
+    """A validation error for the log: the field and the rule's name (`literal_error`,
+    `json_invalid`), never a value, nor a key that came with the body (an extra field's)."""
+    shown = []
+    for item in problem.errors()[:MAX_PROBLEMS]:
+        loc = [str(part) for part in item.get("loc", ())]
+        kind = str(item.get("type", "invalid"))
+        if kind == "extra_forbidden" and loc:
+            loc[-1] = "?"  # the body's own key
+        shown.append(f"{_printable('.'.join(loc), 100)}: {_printable(kind, 60)}")
+    return "; ".join(shown)
+
+
+async def _refused(request: Request, problem: Exception) -> Response:
+    """A route's refusal (4xx), logged; FastAPI's own answer to it."""
+    assert isinstance(problem, HTTPException)
+    if problem.status_code < 500:
+        _log_refusal(request, problem.status_code, str(problem.detail))
+    return await http_exception_handler(request, problem)
+
+
+def _log_refusal(request: Request, status: int, detail: str) -> None:
+    """One line, as the access guard's, saying whose token the request carried."""
+    who = getattr(request.state, "who", None)
+    by = (
+        "" if who is None else " (the operator's token)" if who == OPERATOR else f" ({who}'s token)"
+    )
+    log_refusal(request.method, request.url.path, status, f"{detail}{by}")
 
 
 async def _database_busy(request: Request, problem: Exception) -> JSONResponse:
@@ -150,5 +187,6 @@ async def _internal_error(request: Request, problem: Exception) -> JSONResponse:
 
 def add_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _invalid_request)
+    app.add_exception_handler(HTTPException, _refused)
     app.add_exception_handler(sqlite3.OperationalError, _database_busy)
     app.add_exception_handler(Exception, _internal_error)

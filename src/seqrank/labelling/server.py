@@ -10,6 +10,7 @@ Endpoints (all JSON unless said otherwise; errors are `{"detail": "..."}` with a
 - `GET /api/clips/{id}.mp4`    a segment's clip (rendered on first request, then cached)
 - `POST /api/survey`           `{run, satisfaction 1-5, criteria}` after a study method
 - `GET /api/labels.jsonl`      every answer so far in the documented JSONL format
+- `GET /favicon.ico`          204: the page has no icon (browsers ask for one by themselves)
 
 Every request passes the access guard (`access.py`: Host, Origin, token) and the request
 rules (`limits.py`: JSON bodies of bounded size, bounded fields, errors that never echo
@@ -24,7 +25,7 @@ from importlib import resources
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, FastAPI, HTTPException, Path, Request
-from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse
+from fastapi.responses import FileResponse, HTMLResponse, PlainTextResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
@@ -74,6 +75,10 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
     @app.get("/", response_class=HTMLResponse)
     def index() -> str:
         return (STATIC / "index.html").read_text()
+
+    @app.get("/favicon.ico")
+    def no_icon() -> Response:  # what browsers ask for by themselves: not a refusal to log
+        return Response(status_code=204)
 
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
     app.include_router(_question_routes(hub))
@@ -268,7 +273,7 @@ def _survey_routes(hub: Hub) -> APIRouter:
         stored = hub.db.survey(body.run)
         # a stored survey is answered again as a duplicate even after its phase has passed
         if stored is None and (hub.phase != "survey" or hub.survey_run != body.run):
-            raise HTTPException(409, f"no survey is open for run {body.run!r}")
+            raise HTTPException(409, "no survey is open for that run")  # (never echoed)
         scheme = hub.scheme if stored is None else stored["scheme"]
         created = hub.db.record_survey(
             body.run, scheme, body.satisfaction, body.criteria, hub.settings.annotator
