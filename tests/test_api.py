@@ -69,3 +69,13 @@ def test_the_examples_run(tmp_path):
     assert run.summary is not None and [s for s, _ in run.evaluations()][-1] == 2_100
     looked = _example(str(EXAMPLES / "load_a_run.py"), "judge", cwd=tmp_path)
     assert "one more episode with the saved policy: return" in looked
+
+
+def test_make_config_takes_the_scale_auto_that_the_cli_defaults_to():
+    """auto is paper on CUDA and small elsewhere, as `seqrank train --scale auto`."""
+    import seqrank
+
+    assert seqrank.make_config("walker_walk", "auto", device="cpu").scale == "small"
+    assert seqrank.make_config("walker_walk", "auto", device="cpu").hidden == 256
+    with pytest.raises(ValueError, match="unknown scale 'huge'; accepted: auto, paper, small"):
+        seqrank.make_config("walker_walk", "huge")

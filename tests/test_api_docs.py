@@ -103,3 +103,14 @@ def test_the_examples_run(name, tmp_path, monkeypatch):
     for test in tests:
         runner.run(test, out=report.write)
     assert runner.failures == 0, report.getvalue()
+
+
+def test_the_schemes_block_of_the_api_page_runs():
+    """`seqrank.SCHEMES` is rendered from `SchemeName` (docs/reference/api.md)."""
+    from seqrank.feedback.schemes import SchemeName
+
+    tests = doctest.DocTestFinder().find(SchemeName, "SchemeName", globs={"SchemeName": SchemeName})
+    runner = doctest.DocTestRunner(optionflags=FLAGS)
+    for test in tests:
+        runner.run(test)
+    assert runner.tries >= 2 and runner.failures == 0

@@ -120,8 +120,9 @@ def make_config(task: str | None = None, scale: str = "small", **settings: Any) 
     Args:
         task: a task name as `--task` takes it; None: walker_walk, or the task of a
             `teacher="replay:FILE"` file (the settings the file fixes are taken from it).
-        scale: small (the default: a preset sized for a 2-core CPU) or paper (the
-            paper's Table 2 sizes).
+        scale: small (the default: a preset sized for a 2-core CPU), paper (the
+            paper's Table 2 sizes) or auto (paper on CUDA, small elsewhere, as
+            `seqrank train` and `PreferenceFeedback` default to).
         **settings: `TrainConfig` fields, the options of `seqrank train` with _ for -.
 
     Returns:

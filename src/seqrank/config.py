@@ -19,6 +19,7 @@ from seqrank.config_ranges import check_setting
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
 from seqrank.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
+from seqrank.scale import scale_for_device
 from seqrank.train_config import PRECISIONS as PRECISIONS
 from seqrank.train_config import SCALES as SCALES
 from seqrank.train_config import TrainConfig as TrainConfig
@@ -90,7 +91,12 @@ def unread_settings(reward: RewardSignal, start_from: bool = False) -> frozenset
 def resolve_config(task: str | None, scale: str, overrides: dict[str, Any]) -> TrainConfig:
     """Suite defaults, then Table 2, then the size preset, then what a replayed label file
     fixes (`config_rules.recorded_values`), then the user's overrides, which must agree
-    with the file. `task` None: the label file's, else the default."""
+    with the file. `task` None: the label file's, else the default; `scale` auto: paper on
+    CUDA, small elsewhere (`scale.resolve_scale`, on the device the overrides name)."""
+    if scale == "auto":
+        scale = scale_for_device(str(overrides.get("device", "auto")))
+    elif scale not in SCALES:
+        raise SettingError(f"unknown scale {scale!r}; accepted: auto, paper, small")
     recorded = rules.replayed(overrides.get("teacher"))
     taken = (
         {} if recorded is None else rules.recorded_values(recorded, overrides.get("max_feedback"))

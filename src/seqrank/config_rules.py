@@ -55,6 +55,11 @@ def check_crowd(config: TrainConfig) -> None:
     """The crowd's settings act on a crowd's answers only."""
     kind = config.teacher_spec.kind
     if config.annotators:
+        if not config.reward.asks:
+            raise SettingError(
+                f"{setting('annotators')} names a team that answers questions; "
+                f"{setting('reward')} '{config.reward}' asks none: leave one of them out"
+            )
         if kind != "human":
             raise SettingError(
                 f"{setting('annotators')} names a team at the labelling page; "
@@ -205,6 +210,11 @@ def check_baseline(config: TrainConfig) -> None:
             f"{setting('backbone')} '{config.backbone}' learns its reward from feedback; "
             f"{setting('reward')} '{config.reward}' asks for none: use {setting('backbone')} "
             "pebble"
+        )
+    if config.teacher_spec.kind == "human" and config.record_states:  # `seqrank label`
+        raise SettingError(
+            f"the labelling page asks a person questions; {setting('reward')} "
+            f"'{config.reward}' asks none: leave {setting('reward')} out"
         )
     if config.teacher_spec.kind != "scripted":
         raise SettingError(

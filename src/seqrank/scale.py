@@ -13,3 +13,11 @@ def resolve_scale(scale: str, device: torch.device) -> str:
     if scale != "auto":
         return scale
     return "paper" if device.type == "cuda" else "small"
+
+
+def scale_for_device(device: str) -> str:
+    """`resolve_scale` for a device setting (auto, cpu, cuda), before any device is made."""
+    import torch
+
+    cuda = device == "cuda" or (device == "auto" and torch.cuda.is_available())
+    return "paper" if cuda else "small"

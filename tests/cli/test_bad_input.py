@@ -304,6 +304,20 @@ CASES = [
     (["study-report", "{dir}", "--json", "x.json"], "{dir} holds no participant"),
     # no such command
     (["fly"], "invalid choice: 'fly'"),
+    # no option is abbreviated (issue 45, item 5): a prefix is refused, not taken for another
+    ([*TRAIN, "--schem", "root"], "seqrank train: error: unrecognized arguments: --schem root"),
+    ([*TRAIN, "--annotator", "alice"], "seqrank train: error: unrecognized arguments: --annot"),
+    (["reward-bench", "run", "--pool", "m.npz", "--seed", "3"], "reward-bench run: error: unrec"),
+    # an unknown option is named by its own command; choices as typed (item 6)
+    ([*TRAIN, "--nope"], "seqrank train: error: unrecognized arguments: --nope (see seqrank t"),
+    (["sweep", "{toml}", "--nope"], "seqrank sweep: error: unrecognized arguments: --nope"),
+    ([*TRAIN, "--scale", "huge"], "invalid choice: 'huge'; accepted: auto, paper, small (see"),
+    ([*TRAIN, "--reward", "true", "--annotators", "alice,bob"], "--annotators names a team that"),
+    ([*ONLINE, "--reward", "true"], "the labelling page asks a person questions; --reward 'tr"),
+    # a task whose clips the page cannot show: refused before any address or folder (item 9)
+    ([*ONLINE, "--task", "gym:Pendulum-v1"], "'gym:Pendulum-v1' cannot show clips: it has no"),
+    ([*ONLINE, "--task", "gym:Pendulum-v1", "--dry-run"], "render_mode='rgb_array'"),
+    (["label", "offline", "--task", "gym:Pendulum-v1", "--port", "0"], "cannot show clips"),
 ]
 
 

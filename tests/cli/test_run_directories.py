@@ -149,3 +149,18 @@ def test_sigterm_stops_at_the_episode_end_with_a_checkpoint_and_resume_finishes(
     assert [s for _, s in replay.sessions] == [0, 1]
     first = labels.segments[labels.answers[0]["first"]]
     assert sum(first["rewards"]) == pytest.approx(store.segment_returns[0], rel=1e-5)
+
+
+@pytest.mark.parametrize("native", [True, False])
+def test_bf16_asked_for_on_a_cpu_without_native_bf16_is_said_to_be_slow(
+    native, tmp_path, monkeypatch, capsys
+):
+    from seqrank.training import cpu_path
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cpu_path, "native_bf16", lambda: native)
+    assert main(["train", *SHORT, "--path", "fast", "--precision", "bf16", "--dry-run"]) == 0
+    err = capsys.readouterr().err.replace("\n", " ")
+    assert "fast path, bf16" in err
+    assert ("this CPU has no native bf16" in err) is not native
+    assert "--precision fp32 (or auto) trains faster" in err or native

@@ -48,3 +48,22 @@ def test_gymnasium_alone_finds_the_ids_by_module_prefix():
     code = f"import gymnasium; print({make}.reset(seed=0)[0].shape)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.strip() == "(5,)", done.stderr
+
+
+def test_a_made_task_names_its_episode_length_in_its_spec():
+    """What TimeLimit users (SB3, gymnasium.make(spec)) read; the task truncates there itself."""
+    import gymnasium
+
+    import seqrank  # noqa: F401  (registers the ids)
+
+    env = gymnasium.make("seqrank/cartpole_swingup-v0")
+    assert env.spec is not None and env.spec.max_episode_steps == 1000
+    again = gymnasium.make(env.spec)
+    again.reset(seed=0)
+    steps, done = 0, False
+    while not done:
+        _, _, terminated, truncated, _ = again.step(again.action_space.sample())
+        steps, done = steps + 1, terminated or truncated
+    assert steps == 1000 and again.spec.max_episode_steps == 1000
+    env.close()
+    again.close()

@@ -10,7 +10,8 @@ import pytest
 
 from seqrank.cli import main
 from seqrank.episodes import Episode
-from seqrank.rewardbench.bench import BenchSettings, Cell, RewardNet, heldout_measures, run_cell
+from seqrank.rewardbench.bench import BenchSettings, RewardNet, heldout_measures, run_cell
+from seqrank.rewardbench.cells import Cell
 from seqrank.rewardbench.grid import read_rows, run_grid
 from seqrank.rewardbench.pool import (
     RANDOM_PLAY,

@@ -1,6 +1,7 @@
 """What `--path auto` picks on a CPU (`seqrank.training.cpu_path`): the fast path in bf16
 only with native bf16, at the sizes whose learning was checked, and when measured faster
-on this machine; the measurement is made once and kept."""
+on this machine; else the flat update in fp32 when measured faster; the measurement is
+made once and kept."""
 
 from __future__ import annotations
 
@@ -22,13 +23,19 @@ CPU = torch.device("cpu")
 def machine(monkeypatch, tmp_path):
     """A CPU whose flags and measured speed-up the test sets; a cache of its own."""
     monkeypatch.setenv("SEQRANK_CACHE", str(tmp_path))
-    state = {"flags": {"avx512f", "avx512_bf16"}, "speedup": 2.0, "measured": 0}
+    state = {
+        "flags": {"avx512f", "avx512_bf16"},
+        "capability": "AVX512",
+        "speedup": {"bf16": 2.0, "fp32": 1.2},
+        "measured": 0,
+    }
 
-    def measure(shape):
+    def measure(shape, precision):
         state["measured"] += 1
-        return state["speedup"]
+        return state["speedup"][precision]
 
     monkeypatch.setattr(cpu_path, "cpu_flags", lambda: state["flags"])
+    monkeypatch.setattr(cpu_path, "torch_capability", lambda: state["capability"])
     monkeypatch.setattr(cpu_path, "_measure", measure)
     return state
 
@@ -43,17 +50,29 @@ def test_native_bf16_measured_faster_at_checked_sizes_takes_the_fast_path(machin
 
 
 @pytest.mark.parametrize(
-    ("flags", "speedup", "shape"),
+    ("flags", "capability", "bf16", "fp32", "expected"),
     [
-        ({"avx2", "fma"}, 2.0, CHECKED),  # no native bf16: never by guess
-        ({"avx512_bf16"}, 1.1, CHECKED),  # native, but not measured faster enough
-        ({"amx_bf16"}, 2.0, SMALL),  # smaller than the sizes whose learning was checked
+        ({"avx2", "fma"}, "AVX2", 2.0, 1.14, "fp32"),  # no native bf16: the flat update in fp32
+        ({"avx512_bf16"}, "AVX2", 2.0, 1.14, "fp32"),  # torch's kernels held at AVX2
+        ({"avx512_bf16"}, "AVX512", 1.1, 1.14, "fp32"),  # native, bf16 not faster enough
+        ({"avx2", "fma"}, "AVX2", 2.0, 1.01, None),  # neither measured faster: reference
     ],
 )
-def test_otherwise_auto_stays_on_the_reference_path(machine, flags, speedup, shape):
-    machine["flags"], machine["speedup"] = flags, speedup
-    chosen = runtime(shape)
-    assert not chosen.fast and chosen.precision == "fp32"
+def test_without_a_fast_bf16_auto_takes_the_flat_update_in_fp32_where_measured_faster(
+    machine, flags, capability, bf16, fp32, expected
+):
+    machine.update(flags=flags, capability=capability, speedup={"bf16": bf16, "fp32": fp32})
+    chosen = runtime(CHECKED)
+    if expected is None:
+        assert not chosen.fast and chosen.precision == "fp32"
+    else:
+        assert chosen.fast and chosen.precision == expected
+
+
+def test_smaller_networks_than_those_checked_stay_on_the_reference_path(machine):
+    machine["flags"] = {"amx_bf16"}
+    chosen = runtime(SMALL)
+    assert not chosen.fast and chosen.precision == "fp32" and machine["measured"] == 0
 
 
 def test_what_the_user_chose_is_never_overruled(machine):
@@ -69,15 +88,15 @@ def test_the_measurement_is_made_once_per_machine_and_shape(machine, tmp_path):
     runtime(CHECKED)
     assert machine["measured"] == 1
     ((key, value),) = json.loads((tmp_path / "cpu-paths.json").read_text()).items()
-    assert value == 2.0 and "'hidden': 256" in key and "threads" in key
+    assert value == 2.0 and "'hidden': 256" in key and "threads" in key and key.endswith("bf16")
     runtime(UpdateShape(24, 6, 256, 3, 256))
     assert machine["measured"] == 2
 
 
 def test_a_real_measurement_leaves_the_global_random_state_alone():
     before = torch.random.get_rng_state()
-    speedup = cpu_path._measure(UpdateShape(3, 1, 8, 1, 8))
-    assert speedup > 0
+    for precision in ("fp32", "bf16"):
+        assert cpu_path._measure(UpdateShape(3, 1, 8, 1, 8), precision) > 0
     assert torch.equal(torch.random.get_rng_state(), before)
 
 
@@ -110,7 +129,7 @@ def test_the_measurement_runs_with_the_threads_a_fast_run_trains_with(machine, m
     monkeypatch.setattr(cpu_path.os, "sched_getaffinity", lambda _: {0, 1})
     seen: list[int] = []
 
-    def measure(shape):
+    def measure(shape, precision):
         seen.append(torch.get_num_threads())
         return 2.0
 

@@ -33,6 +33,8 @@ def format_markdown(result: dict[str, Any]) -> str:
         "|" + "---|" * len(header),
     ]
     for label, key, ratio_key, fmt in ROWS:
+        if key == "capture_s" and not str(result["device"]).startswith("cuda"):
+            continue  # CUDA graphs are captured on CUDA only
         scale = 1 / 60 if key == "projected_full_run_s" else 1
         cells = [fmt.format(variants[name][key] * scale) for name in variants]
         for name in fast:

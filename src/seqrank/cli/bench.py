@@ -32,29 +32,19 @@ def add_parser(commands: Any) -> None:
     bench = commands.add_parser(
         "bench", help="time the reference and fast training paths side by side", description=ABOUT
     )
-    bench.add_argument("--task", default="walker_walk", help="the task whose shapes are timed")
-    bench.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="where")
+    bench.add_argument(
+        "--task", default="walker_walk", help="the task whose shapes are timed (walker_walk)"
+    )
+    bench.add_argument(
+        "--device", choices=("auto", "cpu", "cuda"), default="auto", help="where (auto)"
+    )
     bench.add_argument(
         "--scale",
         choices=("auto", *SCALES),
         default="auto",
         help="network and batch sizes: paper on CUDA, small on CPU (auto)",
     )
-    bench.add_argument(
-        "--repeats", type=int_between(1, 1000), default=3, help="interleaved rounds (3)"
-    )
-    bench.add_argument(
-        "--updates", type=int_between(1, 10**6), default=200, help="SAC updates timed per round"
-    )
-    bench.add_argument(
-        "--reward-epochs", type=int_between(1, 10**4), default=5, help="reward epochs per round"
-    )
-    bench.add_argument(
-        "--loop-steps",
-        type=int_between(300, 10**7, "a round spans warm-up and feedback"),
-        default=2000,
-        help="loop steps per round",
-    )
+    _add_rounds(bench)
     bench.add_argument(
         "--precisions",
         help="fast-path precisions, comma-separated "
@@ -82,6 +72,31 @@ def add_parser(commands: Any) -> None:
         "--dry-run", action="store_true", help="check the options, print the plan, time nothing"
     )
     bench.set_defaults(handler=run)
+
+
+def _add_rounds(bench: argparse.ArgumentParser) -> None:
+    """How much each interleaved round times."""
+    bench.add_argument(
+        "--repeats", type=int_between(1, 1000), default=3, help="interleaved rounds, 1 to 1000 (3)"
+    )
+    bench.add_argument(
+        "--updates",
+        type=int_between(1, 10**6),
+        default=200,
+        help="SAC updates timed per round, 1 to 1000000 (200)",
+    )
+    bench.add_argument(
+        "--reward-epochs",
+        type=int_between(1, 10**4),
+        default=5,
+        help="reward epochs per round, 1 to 10000 (5)",
+    )
+    bench.add_argument(
+        "--loop-steps",
+        type=int_between(300, 10**7, "a round spans warm-up and feedback"),
+        default=2000,
+        help="loop steps per round, 300 to 10000000 (2000)",
+    )
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:

@@ -101,7 +101,8 @@ def _add_offline(modes: Any) -> None:
         default="",
         metavar="NAMES",
         help="a team sharing the sessions out, comma-separated (alice,bob): each gets an "
-        "address of their own, the operator a page of their own (/operator)",
+        "address of their own, the operator a page of their own (/operator); names of ASCII "
+        "letters, digits, '-', '_' and '.', starting with a letter, 'operator' reserved",
     )
     offline.add_argument(
         "--overlap",
@@ -148,8 +149,11 @@ def _offline_options(args: argparse.Namespace) -> Any:
         task = check_task_name(args.task)
     length = args.segment_length or resolve_config(task, "small", {}).segment_length
     env = make_env(task, args.seed)
-    episode = env.episode_length
-    env.close()
+    try:
+        env.check_clips()
+        episode = env.episode_length
+    finally:
+        env.close()
     if length > episode:
         raise ValueError(
             f"--segment-length {length} is longer than an episode of {task} ({episode} steps); "
@@ -227,6 +231,17 @@ def _settings_of(options: Any) -> dict[str, Any]:
     return settings
 
 
+def check_clips(task: str) -> None:
+    """A task whose clips the page could not show is refused before anything is made."""
+    from seqrank.envs import make_env
+
+    env = make_env(task)
+    try:
+        env.check_clips()
+    finally:
+        env.close()
+
+
 def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     from seqrank.labelling.app import open_hub
     from seqrank.training.runs import RunDir
@@ -249,7 +264,7 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
             hub.db.close()
             raise
 
-    started = prepare_run(args, err, make, resolve_device)
+    started = prepare_run(args, err, make, resolve_device, lambda config: check_clips(config.task))
     if started is None:
         return 0  # --dry-run
     try:

@@ -51,7 +51,8 @@ MEANINGS = {
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
     "is right) or none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "
-    "address of their own)",
+    "address of their own; ASCII letters, digits, '-', '_' and '.', starting with a letter, "
+    "'operator' reserved)",
     "query_episodes": "QPA: cut new segments from the last N episodes only (0: all kept)",
     "hybrid_replay": "QPA: share of each agent batch from recent transitions while "
     "feedback is asked for (0: off)",

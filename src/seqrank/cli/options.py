@@ -17,10 +17,33 @@ FIELD_TYPES: dict[str, type] = {"int": int, "float": float, "str": str}
 
 
 class Parser(argparse.ArgumentParser):
-    """Bad input: one line naming the problem, exit code 2."""
+    """Bad input: one line naming the problem and the command it belongs to, exit code 2.
+    Options are never abbreviated: `--schem` is no `--scheme`, and `--annotator` no
+    `--annotators` (a prefix silently taken for another option changed runs)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace | None, list[str]]:
+        """A command without sub-commands of its own names an unknown option itself, not
+        the top-level `seqrank` that would otherwise report it."""
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras and self._subparsers is None:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        """Choices as the user types them (an enum's value, not its repr)."""
+        if action.choices is not None and value not in action.choices:
+            accepted = ", ".join(str(choice) for choice in action.choices)
+            message = f"invalid choice: {value!r}; accepted: {accepted}"
+            raise argparse.ArgumentError(action, message)
 
 
 def _whole_number(text: str) -> int:

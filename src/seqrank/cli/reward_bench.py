@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from seqrank.choices import RewardLearner
-from seqrank.cli.options import int_between, names, positive, seed_number
+from seqrank.cli.options import Parser, int_between, names, positive, seed_number
 from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
@@ -57,7 +57,7 @@ def add_parser(commands: Any) -> None:
         "or score labels exported from the labelling page (score). Measures on held-out segments: "
         "preference accuracy, Spearman rank correlation, wrong inferred labels.",
     )
-    actions = bench.add_subparsers(dest="action", required=True)
+    actions = bench.add_subparsers(dest="action", required=True, parser_class=Parser)
     _add_pool(actions)
     _add_grid(actions)
     _add_score(actions)
@@ -341,7 +341,8 @@ def _check_recorded_task(source: ReplaySource, task: str) -> None:
 
 def run_score(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.feedback.replay import ReplaySource
-    from seqrank.rewardbench.bench import BenchSettings, Cell, run_cell
+    from seqrank.rewardbench.bench import BenchSettings, run_cell
+    from seqrank.rewardbench.cells import Cell
     from seqrank.rewardbench.pool import load_pool
 
     try:  # the input's checks; scoring itself is the code's (a fault is a traceback)

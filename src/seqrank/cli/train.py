@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -116,10 +117,16 @@ def new_run(args: argparse.Namespace, resolve_device: Any) -> NewRun:
 
 
 def prepare_run(
-    args: argparse.Namespace, err: Console, trainer_cls: Any, resolve_device: Any
+    args: argparse.Namespace,
+    err: Console,
+    trainer_cls: Any,
+    resolve_device: Any,
+    check: Callable[[TrainConfig], None] | None = None,
 ) -> Started | None:
     """Start a new run or continue one (None after --dry-run); bad input raises ValueError.
-    The run directory stays locked by this process until `Started.run.release()`."""
+    `check` refuses a new run's settings that the caller cannot serve, before anything is
+    written (and in a dry run). The run directory stays locked by this process until
+    `Started.run.release()`."""
     from seqrank.training.launch import continue_run, start_new
 
     if hasattr(args, "resume"):
@@ -137,6 +144,8 @@ def prepare_run(
     from seqrank.training.runtime import config_runtime
 
     config_runtime(config, new.device)  # before anything is written
+    if check is not None:
+        check(config)
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
     RunDir.check_new(path)
     wandb = getattr(args, "wandb", None)
@@ -159,10 +168,16 @@ def _way(runtime: Runtime) -> str:
     way = f"{runtime.path} path, {runtime.precision}"
     if runtime.device.type != "cpu":
         return way
-    from seqrank.training.cpu_path import training_threads
+    from seqrank.training.cpu_path import native_bf16, training_threads
 
     threads = training_threads(runtime.fast)
-    return f"{way}, {threads} torch thread{'s' if threads > 1 else ''}"
+    way = f"{way}, {threads} torch thread{'s' if threads > 1 else ''}"
+    if runtime.precision == "bf16" and not native_bf16():
+        way += (
+            "; this CPU has no native bf16, so bf16 is emulated and was measured 13x slower "
+            "than fp32: --precision fp32 (or auto) trains faster"
+        )
+    return way
 
 
 def _check_with_env(config: TrainConfig) -> Runtime:

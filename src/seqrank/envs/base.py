@@ -86,6 +86,10 @@ class SimEnv(gym.Env[np.ndarray, np.ndarray]):
     _flip = False
     _fast_rendering = False
 
+    def check_clips(self) -> None:
+        """Raise SettingError when the labelling page could not show this task's clips
+        (a MuJoCo task always can: its states are re-rendered)."""
+
     def use_fast_rendering(self) -> None:
         """No shadows, reflections or anti-aliasing: about 8x faster (labelling clips)."""
         self._fast_rendering = True

@@ -140,6 +140,18 @@ class GymEnv(SimEnv):
             return super().render_states(states, context, width, height)
         return np.stack([_resize(frame, width, height) for frame in states])
 
+    def check_clips(self) -> None:
+        mode = getattr(self._env, "render_mode", None)
+        if self.clip_source == "state" or mode == "rgb_array":
+            return
+        env_id = self.name.removeprefix("gym:") if self.name.startswith("gym:") else "..."
+        raise SettingError(
+            f"{setting('task')} {self.name!r} cannot show clips: it has no MuJoCo state, so its "
+            f"clips are its render() frames, and it was made with render_mode={mode!r}; give a "
+            "module.path:factory task whose function makes it with render_mode='rgb_array', "
+            f"e.g. def make(): return gymnasium.make({env_id!r}, render_mode='rgb_array')"
+        )
+
     def use_fast_rendering(self) -> None:
         if self.clip_source == "state":
             super().use_fast_rendering()

@@ -4,10 +4,12 @@ builds it (`seqrank.registration`): `render()` gives RGB frames with
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.envs.registration import EnvSpec
 
 from seqrank.envs.suites import make_env
 
@@ -33,6 +35,19 @@ class TaskEnv(gym.Env[np.ndarray, np.ndarray]):
         self.action_space = self.task.action_space
         # the task ends its episodes itself (truncated at this step): what a TimeLimit says
         self.max_episode_steps = self.task.episode_length
+        self._spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registered spec with the task's episode length (what `TimeLimit` users read,
+        SB3 and `gymnasium.make(spec)` among them); the task truncates there itself."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, spec: EnvSpec | None) -> None:  # gymnasium.make sets it after __init__
+        self._spec = (
+            None if spec is None else replace(spec, max_episode_steps=self.max_episode_steps)
+        )
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

@@ -282,6 +282,16 @@ def _check_pool(scheme: str, pool_size: int, budget: int) -> None:
 
 
 class SchemeName(StrEnum):
+    """The comparison schemes by name; `seqrank.SCHEMES` is their values in this order.
+
+    Examples:
+        >>> import seqrank
+        >>> seqrank.SCHEMES
+        ('pairwise', 'sequential', 'root', 'ranked')
+        >>> [s.has_defender for s in SchemeName]  # a kept segment against each new one
+        [False, True, True, True]
+    """
+
     PAIRWISE = "pairwise"
     SEQUENTIAL = "sequential"
     ROOT = "root"

@@ -1,17 +1,24 @@
-"""What `--path auto` picks on a CPU: the fast path in bf16 where that is measured to be
-faster on this machine and to learn the same, the reference path otherwise.
+"""What `--path auto` picks on a CPU: the fast path (the flat update) in bf16 where that
+is measured to be faster on this machine and to learn the same; else the flat update in
+fp32 where that is measured faster; the reference path otherwise.
 
 bf16 matmuls are fast only where the processor does bf16 natively (AVX-512 BF16, AMX): on
 an AVX2-only processor they were measured 13x slower, so nothing is chosen by guess. The
-choice takes three facts:
+flat update in fp32 computes what the reference update computes, in the same precision
+(held to autograd in `tests/agents/test_flat_update.py`); on an AVX2 processor it was
+measured 1.14x faster per update and 1.26x per loop step (issue 45). The choice takes
+three facts:
 
-- the processor's flags name native bf16 (`/proc/cpuinfo`; elsewhere: no);
+- the processor's flags name native bf16 (`/proc/cpuinfo`; elsewhere: no) and torch's
+  kernels run at that level (`torch.backends.cpu.get_cpu_capability()` AVX512: with
+  `ATEN_CPU_CAPABILITY=avx2` they do not, and bf16 is emulated);
 - the run's networks are at least the sizes whose learning was checked side by side
   (`results/speed/walker-flat-bf16-cpu.toml`: 256 x 2, batch 256; smaller ones stay
   reference);
-- a measurement of both updates at the run's own shapes, on this machine, with the torch
-  threads a fast run trains with (`training_threads`), finds the fast bf16 update at least
-  `MIN_SPEEDUP` times faster. It takes about a second, and is kept in
+- a measurement of the updates at the run's own shapes, on this machine, with the torch
+  threads a fast run trains with (`training_threads`), finds the flat update in bf16 at
+  least `MIN_SPEEDUP` times faster than the reference (or, failing that, in fp32 at least
+  `MIN_FP32_SPEEDUP` times). It takes about a second a precision, and is kept in
   `~/.cache/seqrank/cpu-paths.json` (`SEQRANK_CACHE` moves it), so the choice is made once
   per machine and shape, and two runs on one machine take the same path.
 """
@@ -31,10 +38,12 @@ from pathlib import Path
 import torch
 
 NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
-MIN_SPEEDUP = 1.25
+MIN_SPEEDUP = 1.25  # bf16: a lower precision pays for itself only with a clear gain
+MIN_FP32_SPEEDUP = 1.05  # fp32: the same computation, taken when measurably faster
 CHECKED_HIDDEN, CHECKED_BATCH = 256, 256  # the learning check's sizes
 ROUNDS, UPDATES, WARMUP = 3, 20, 5
 MEASURED = "flat update"  # what was timed: a cached measurement of another update is redone
+NATIVE_BF16_CAPABILITY = "AVX512"  # torch's kernel level that runs bf16 natively
 
 
 @dataclass(frozen=True)
@@ -86,30 +95,44 @@ def torch_threads(count: int) -> Iterator[None]:
 
 
 def native_bf16() -> bool:
-    return bool(cpu_flags() & set(NATIVE_BF16_FLAGS))
+    return bool(cpu_flags() & set(NATIVE_BF16_FLAGS)) and torch_capability() == (
+        NATIVE_BF16_CAPABILITY
+    )
 
 
-def prefers_fast_bf16(shape: UpdateShape) -> bool:
-    """Whether `--path auto` trains this shape on the fast path in bf16 on this CPU."""
-    if not shape.checked or not native_bf16():
-        return False
-    return measured_speedup(shape) >= MIN_SPEEDUP
+def torch_capability() -> str:
+    """The vector level torch's CPU kernels run at (AVX2, AVX512, ...)."""
+    return str(torch.backends.cpu.get_cpu_capability())
 
 
-def measured_speedup(shape: UpdateShape) -> float:
-    """How many times faster the fast bf16 update is than the reference one (cached)."""
+def auto_cpu_precision(shape: UpdateShape) -> str | None:
+    """The precision `--path auto` trains this shape's flat update in on this CPU (bf16
+    or fp32), or None: the reference path."""
+    if not shape.checked:
+        return None
+    if native_bf16() and measured_speedup(shape, "bf16") >= MIN_SPEEDUP:
+        return "bf16"
+    return "fp32" if measured_speedup(shape, "fp32") >= MIN_FP32_SPEEDUP else None
+
+
+def measured_speedup(shape: UpdateShape, precision: str = "bf16") -> float:
+    """How many times faster the flat update in `precision` is than the reference one
+    (cached)."""
     cache = _cache_file()
     threads = training_threads(fast=True)
-    key = f"{_machine()}|torch {torch.__version__}|threads {threads}|{asdict(shape)}|{MEASURED}"
+    key = (
+        f"{_machine()}|torch {torch.__version__}|threads {threads}|{asdict(shape)}|"
+        f"{MEASURED} {precision}"
+    )
     known = _read(cache)
     if key not in known:
         with torch_threads(threads):
-            known[key] = _measure(shape)
+            known[key] = _measure(shape, precision)
         _write(cache, {**_read(cache), key: known[key]})
     return float(known[key])
 
 
-def _measure(shape: UpdateShape) -> float:
+def _measure(shape: UpdateShape, precision: str) -> float:
     """Median of interleaved rounds; the global random state is left as it was."""
     from seqrank.agents.sac import SAC, Execution, SACSettings
     from seqrank.buffer import Batch
@@ -118,7 +141,7 @@ def _measure(shape: UpdateShape) -> float:
         settings = SACSettings(shape.hidden, shape.layers, 3e-4, 3e-4, 1e-4, 0.1, 0.99, 0.005, 2)
         cpu = torch.device("cpu")
         agents = [SAC(shape.obs_dim, shape.act_dim, settings, cpu)]
-        flat = Execution.fast(cpu, "bf16")  # what the run would take: the flat update
+        flat = Execution.fast(cpu, precision)  # what the run would take: the flat update
         agents.append(SAC(shape.obs_dim, shape.act_dim, settings, cpu, flat))
         generator = torch.Generator().manual_seed(0)
         rows, obs, act = shape.batch, shape.obs_dim, shape.act_dim

@@ -25,7 +25,7 @@ from seqrank.choices import (
 from seqrank.config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
-from seqrank.training.cpu_path import UpdateShape, prefers_fast_bf16
+from seqrank.training.cpu_path import UpdateShape, auto_cpu_precision
 
 DEVICES = tuple(Device)
 PATHS = tuple(TrainingPath)
@@ -68,8 +68,9 @@ def resolve_runtime(
     path = parse_choice(TrainingPath, path, "path")
     precision = parse_choice(Precision, precision, "precision")
     check_path(path, precision, discrete)
-    if _auto_cpu_bf16(where, path, precision, discrete, shape):
-        return Runtime(where, True, "bf16")
+    chosen = _auto_cpu_precision(where, path, precision, discrete, shape)
+    if chosen is not None:
+        return Runtime(where, True, chosen)
     fast = (where.type == "cuda" and not discrete) if path == "auto" else path == "fast"
     if not fast and precision not in ("auto", "fp32"):
         raise fast_path_needed(precision, discrete)
@@ -78,12 +79,13 @@ def resolve_runtime(
     return Runtime(where, fast, precision)
 
 
-def _auto_cpu_bf16(
+def _auto_cpu_precision(
     where: torch.device, path: str, precision: str, discrete: bool, shape: UpdateShape | None
-) -> bool:
+) -> str | None:
+    """On a CPU, `--path auto --precision auto` may take the flat update (`cpu_path`)."""
     if where.type != "cpu" or path != "auto" or precision != "auto" or discrete or not shape:
-        return False
-    return prefers_fast_bf16(shape)
+        return None
+    return auto_cpu_precision(shape)
 
 
 def config_runtime(config: TrainConfig, device: str | torch.device) -> Runtime:
