@@ -94,8 +94,14 @@ def test_held_out_measures_of_a_perfect_and_a_reversed_model():
         heldout_measures(_Model(1.0), segments),
         heldout_measures(_Model(-1.0), segments),
     )
-    assert perfect == {"accuracy": 1.0, "spearman": pytest.approx(1.0)}
-    assert reversed_ == {"accuracy": 0.0, "spearman": pytest.approx(-1.0)}
+    top = {"top_accuracy": 1.0, "top_recall": 1.0, "regret": 0.0}
+    assert perfect == {"accuracy": 1.0, "spearman": pytest.approx(1.0), **top}
+    assert {k: reversed_[k] for k in ("accuracy", "top_accuracy", "top_recall")} == {
+        "accuracy": 0.0,
+        "top_accuracy": 0.0,
+        "top_recall": 0.0,
+    }
+    assert reversed_["spearman"] == pytest.approx(-1.0) and 0.5 < reversed_["regret"] <= 1.0
 
 
 def test_a_cell_asks_each_budget_infers_with_sequential_and_repeats_itself():

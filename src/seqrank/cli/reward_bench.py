@@ -55,7 +55,8 @@ def add_parser(commands: Any) -> None:
         description="The schemes' reward learning measured without RL's noise: build a pool "
         "of real episodes (pool), run the grid of schemes x teachers x learners x seeds (run), "
         "or score labels exported from the labelling page (score). Measures on held-out segments: "
-        "preference accuracy, Spearman rank correlation, wrong inferred labels.",
+        "preference accuracy, Spearman rank correlation, accuracy in the top quarter, recall of "
+        "the top 10%, regret of picking the best of 10, wrong inferred labels.",
     )
     actions = bench.add_subparsers(dest="action", required=True, parser_class=Parser)
     _add_pool(actions)

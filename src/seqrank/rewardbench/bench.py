@@ -12,6 +12,8 @@ of segments from held-out episodes:
 - `accuracy`: the fraction of held-out segment pairs (unequal true returns) that the
   ensemble's mean predicted return orders as the true returns do;
 - `spearman`: the rank correlation of predicted and true segment returns;
+- `top_accuracy`, `top_recall`, `regret`: at the top of the held-out segments, where a
+  policy climbing the learned reward goes (`measures.py`);
 - `inferred_wrong`: the fraction of inferred labels (so far) that the true returns
   contradict (None while nothing was inferred).
 
@@ -32,7 +34,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from scipy import stats
 
 from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
@@ -44,6 +45,7 @@ from seqrank.feedback.teachers import parse_teacher
 from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel, RewardTrainResult
 from seqrank.rewardbench.cells import Cell
+from seqrank.rewardbench.measures import heldout_measures
 from seqrank.rewardbench.pool import Pool
 
 
@@ -73,19 +75,6 @@ class BenchSettings:
             raise ValueError(f"budgets must rise strictly, got {list(self.budgets)}")
         if self.budgets[0] < 1 or self.session_questions < 1:
             raise ValueError("budgets and session questions must be at least 1")
-
-
-def heldout_measures(model: RewardModel, heldout: Segments) -> dict[str, float]:
-    predicted = model.member_returns(heldout.features).mean(0)
-    truth = heldout.rewards.sum(1)
-    upper = np.triu_indices(len(truth), 1)
-    true_sign = np.sign(truth[:, None] - truth[None, :])[upper]
-    predicted_sign = np.sign(predicted[:, None] - predicted[None, :])[upper]
-    strict = true_sign != 0
-    return {
-        "accuracy": float((predicted_sign[strict] == true_sign[strict]).mean()),
-        "spearman": float(stats.spearmanr(predicted, truth).statistic),
-    }
 
 
 class _Tally:

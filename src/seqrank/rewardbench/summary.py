@@ -15,9 +15,14 @@ from seqrank.rewardbench.intervals import Interval, bounded_interval
 MEASURES = {
     "accuracy": "held-out preference accuracy",
     "spearman": "rank correlation (Spearman)",
+    "top_accuracy": "accuracy in the top quarter",
+    "top_recall": "true top 10% found in the predicted",
+    "regret": "regret of the best of 10 (of the range)",
     "inferred_wrong": "wrong inferred labels (fraction)",
 }
-RANGES = {"accuracy": (0.0, 1.0), "spearman": (-1.0, 1.0), "inferred_wrong": (0.0, 1.0)}
+RANGES = {measure: (0.0, 1.0) for measure in MEASURES} | {"spearman": (-1.0, 1.0)}
+# compared seed by seed in effects.md, each difference within twice its measure's range
+DIFFERENCES = ("accuracy", "spearman", "top_accuracy", "top_recall", "regret")
 Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questions
 
 
@@ -56,8 +61,8 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "pairs": float(np.mean([m["pairs"] for m in members])),
             "asked_wrong": _mean_of([m.get("asked_wrong") for m in members]),
         }
-        for measure in MEASURES:
-            values = [m[measure] for m in members if m[measure] is not None]
+        for measure in MEASURES:  # (rows written before a measure have none of it)
+            values = [m[measure] for m in members if m.get(measure) is not None]
             entry[measure] = bounded_interval(values, *RANGES[measure]) if values else None
         summary.append(entry)
     return summary
@@ -66,8 +71,10 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None) -> str:
     lines = [
         "| task | teacher | method | questions | scheme | seeds | labelled pairs "
-        "| accuracy [95% CI] | Spearman [95% CI] | wrong inferred | wrong asked |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| accuracy [95% CI] | Spearman [95% CI] | top-quarter accuracy [95% CI] "
+        "| top-10% recall [95% CI] | regret (best of 10) [95% CI] | wrong inferred "
+        "| wrong asked |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for e in summary:
         if budgets is not None and e["questions"] not in budgets:
@@ -77,8 +84,9 @@ def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None
         lines.append(
             f"| {e['task']} | {e['teacher']} | {e['learner']} | {e['questions']} | {e['scheme']} "
             f"| {e['seeds']} "
-            f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} | {wrong} "
-            f"| {asked} |"
+            f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} "
+            f"| {_cell(e['top_accuracy'])} | {_cell(e['top_recall'])} | {_cell(e['regret'])} "
+            f"| {wrong} | {asked} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -125,30 +133,46 @@ def paired_effects(rows: list[dict[str, Any]], baseline: str = "plain") -> list[
             task, teacher, scheme, questions, _ = cell
             groups[(task, teacher, name, scheme, questions)].append((row, base))
     order = [s.value for s in SchemeName]
-    effects = []
-    for (task, teacher, name, scheme, questions), pairs in sorted(
-        groups.items(), key=lambda item: (*item[0][:3], order.index(item[0][3]), item[0][4])
-    ):
-        differences = [row["accuracy"] - base["accuracy"] for row, base in pairs]
-        spearman = [row["spearman"] - base["spearman"] for row, base in pairs]
-        accuracy = bounded_interval(differences, -1.0, 1.0)
-        effects.append(
-            {
-                "task": task,
-                "teacher": teacher,
-                "method": name,
-                "baseline": baseline,
-                "scheme": scheme,
-                "questions": questions,
-                "seeds": len(pairs),
-                "accuracy_difference": accuracy,
-                "spearman_difference": bounded_interval(spearman, -2.0, 2.0),
-                "inferred_wrong": _mean_of([row["inferred_wrong"] for row, _ in pairs]),
-                "baseline_inferred_wrong": _mean_of([base["inferred_wrong"] for _, base in pairs]),
-                "verdict": _verdict(accuracy, same=not any(differences + spearman)),
-            }
+    return [
+        _effect(group, pairs, baseline)
+        for group, pairs in sorted(
+            groups.items(), key=lambda item: (*item[0][:3], order.index(item[0][3]), item[0][4])
         )
-    return effects
+    ]
+
+
+def _effect(
+    group: Group, pairs: list[tuple[dict[str, Any], dict[str, Any]]], baseline: str
+) -> dict[str, Any]:
+    """One method against the baseline in one group: each measure's mean difference and
+    its interval over seeds (None where a row has no such measure: written before it)."""
+    task, teacher, name, scheme, questions = group
+    differences: dict[str, list[float] | None] = {}
+    for measure in DIFFERENCES:
+        values = [(row.get(measure), base.get(measure)) for row, base in pairs]
+        known = [(a, b) for a, b in values if a is not None and b is not None]
+        differences[measure] = [a - b for a, b in known] if len(known) == len(values) else None
+    effect: dict[str, Any] = {
+        "task": task,
+        "teacher": teacher,
+        "method": name,
+        "baseline": baseline,
+        "scheme": scheme,
+        "questions": questions,
+        "seeds": len(pairs),
+    }
+    for measure, found in differences.items():
+        low, high = RANGES[measure]
+        width = high - low  # a difference lies within minus and plus the range's width
+        interval = bounded_interval(found, -width, width) if found else None
+        effect[f"{measure}_difference"] = interval
+    accuracy, spearman = differences["accuracy"] or [], differences["spearman"] or []
+    return {
+        **effect,
+        "inferred_wrong": _mean_of([row["inferred_wrong"] for row, _ in pairs]),
+        "baseline_inferred_wrong": _mean_of([base["inferred_wrong"] for _, base in pairs]),
+        "verdict": _verdict(effect["accuracy_difference"], same=not any(accuracy + spearman)),
+    }
 
 
 def _verdict(difference: Interval, same: bool) -> str:
@@ -213,8 +237,10 @@ def _matrix_cell(effect: dict[str, Any] | None) -> str:
 def _effects_rows(effects: list[dict[str, Any]]) -> str:
     lines = [
         "| task | teacher | method | scheme | questions | seeds | accuracy difference "
-        "[95% CI] | Spearman difference [95% CI] | wrong inferred (baseline's) | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "[95% CI] | Spearman difference [95% CI] | top-quarter accuracy difference [95% CI] "
+        "| top-10% recall difference [95% CI] | regret difference [95% CI] "
+        "| wrong inferred (baseline's) | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for e in effects:
         base = e["baseline_inferred_wrong"]
@@ -223,14 +249,19 @@ def _effects_rows(effects: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {e['task']} | {e['teacher']} | {e['method']} vs {e['baseline']} | {e['scheme']} "
             f"| {e['questions']} | {e['seeds']} | {_signed(e['accuracy_difference'])} "
-            f"| {_signed(e['spearman_difference'])} | {wrong} | {e['verdict']} |"
+            f"| {_signed(e['spearman_difference'])} "
+            f"| {_signed(e.get('top_accuracy_difference'))} "
+            f"| {_signed(e.get('top_recall_difference'))} | {_signed(e.get('regret_difference'))} "
+            f"| {wrong} | {e['verdict']} |"
         )
     return "\n".join(lines) + "\n\n" + EFFECTS_CAVEAT + "\n"
 
 
-def _signed(value: Interval) -> str:
+def _signed(value: Interval | None) -> str:
     """A signed difference and its interval (none for one seed, or for seeds that all
-    agree)."""
+    agree); '-' for a measure the rows did not have."""
+    if value is None:
+        return "-"
     mean, low, high = value
     if low is None or high is None or low == high:
         return _sign(mean)
