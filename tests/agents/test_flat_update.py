@@ -170,3 +170,20 @@ def test_an_optimiser_record_replaced_behind_its_back_is_taken_in():
     after = loader.state_dict()["critic_opt"]
     assert after["step"] == 3
     assert all(not torch.equal(after["exp_avg"][n], v) for n, v in loaded["exp_avg"].items())
+
+
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_on_a_cpu_every_path_acts_with_the_fp32_actor(precision):
+    """One observation a step: the policy in its weights' fp32 whatever the update's
+    precision (bf16 at batch 1 doubled the action's cost), so the reference and the flat
+    path act alike from the same weights and noise."""
+    reference = SAC(OBS, ACT, SETTINGS, CPU)
+    flat = SAC(OBS, ACT, SETTINGS, CPU, Execution.fast(CPU, precision))
+    flat.load_state_dict(reference.state_dict())
+    obs = torch.randn(OBS, generator=torch.Generator().manual_seed(3)).numpy()
+    for deterministic in (False, True):
+        actions = [
+            agent.act(obs, deterministic, torch.Generator().manual_seed(5))
+            for agent in (reference, flat)
+        ]
+        assert (actions[0] == actions[1]).all()
