@@ -289,3 +289,13 @@ def test_an_evidence_pages_python_runs_on_its_results(page, monkeypatch, capsys)
     for _, code in blocks("python", [page]):
         exec(compile(code, str(page), "exec"), {})
     assert capsys.readouterr().out.strip(), "the snippet printed nothing"
+
+
+def test_the_built_site_opens_from_a_file_offline():
+    """README: "open `site/index.html` (offline)": from file:// a link to a folder
+    (`guides/sb3/`) opens a directory listing, so the site links its pages as page.html."""
+    import yaml
+
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    assert config["use_directory_urls"] is False
+    assert "open `site/index.html`" in (ROOT / "README.md").read_text()

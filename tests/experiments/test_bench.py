@@ -43,6 +43,7 @@ def test_bench_writes_every_number_for_both_paths(bench):
     markdown = bench.with_suffix(".md").read_text()
     assert "| SAC update (µs) |" in markdown and "fast-fp32 / reference" in markdown
     assert "Command: `seqrank bench --task dmc:cartpole_swingup --device cpu" in markdown
+    assert "CUDA graph" not in markdown  # captured on CUDA only: no row of zeros on a CPU
 
 
 @pytest.mark.parametrize(("native", "expected"), [(True, ["fp32", "bf16"]), (False, ["fp32"])])
@@ -90,6 +91,8 @@ def test_projection_adds_steps_sessions_and_evaluations():
         "ratios": {"fast-tf32": table},
     }
     assert "| SAC update (µs) | 200 | 50 | 4.00x |" in format_markdown(result)
+    cuda = format_markdown({**result, "device": "cuda"})
+    assert "| CUDA graph capture (s) | 2.00 |" in cuda
 
 
 @pytest.mark.parametrize(
