@@ -48,24 +48,21 @@ def run_report(args: argparse.Namespace, out: Console, err: Console) -> int:
 
 
 def write_report(rows: list[dict[str, Any]], folder: Path, baseline: str, out: Console) -> None:
-    """table.md, summary.json and the curves; with other methods beside the baseline, also
+    """table.md, summary.json and the curves (against questions asked, and clips watched and
+    annotator seconds where the rows counted them); with other methods beside the baseline, also
     effects.md and effects.json (each against the baseline, seed by seed)."""
     from seqrank.rewardbench.cells import distinct_rows
-    from seqrank.rewardbench.summary import (
-        format_effects,
-        format_table,
-        paired_effects,
-        plot_task,
-        summarise,
-    )
+    from seqrank.rewardbench.curves import curve_paths, plot_task
+    from seqrank.rewardbench.summary import format_effects, format_table, paired_effects, summarise
 
     rows = distinct_rows(rows)
     summary = summarise(rows)
     table = format_table(summary)
     (folder / "table.md").write_text(table)
     (folder / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    for task in sorted({e["task"] for e in summary}):
-        plot_task(summary, task, folder / f"curves_{task.replace(':', '-')}.png")
+    for task in sorted({e["task"] for e in summary}):  # against questions, clips, seconds
+        for cost, path in curve_paths(summary, task, folder).items():
+            plot_task(summary, task, path, cost)
     out.print(table, highlight=False, markup=False)
     effects = paired_effects(rows, baseline)
     for name in ("effects.md", "effects.json"):  # none stale from rows of another time

@@ -37,6 +37,7 @@ import torch
 
 from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
+from seqrank.feedback.closure import AugmentationStats
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
@@ -45,7 +46,7 @@ from seqrank.feedback.teachers import parse_teacher
 from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel, RewardTrainResult
 from seqrank.rewardbench.cells import Cell
-from seqrank.rewardbench.measures import heldout_measures
+from seqrank.rewardbench.measures import annotator_seconds, heldout_measures
 from seqrank.rewardbench.pool import Pool
 
 
@@ -80,7 +81,7 @@ class BenchSettings:
 class _Tally:
     def __init__(self) -> None:
         self.asked = self.answered = self.inferred = self.inferred_wrong = 0
-        self.strict = self.asked_wrong = 0
+        self.strict = self.asked_wrong = self.clips = 0
         self.seconds = self.person_seconds = 0.0
 
     def add_time(self, record: SessionRecord) -> None:
@@ -89,13 +90,85 @@ class _Tally:
             self.seconds += record.crowd.seconds
             self.person_seconds += record.crowd.person_seconds
 
-    def add(self, stats_: Any) -> None:
+    def add(self, stats_: AugmentationStats) -> None:
         self.asked += stats_.asked
         self.answered += stats_.answered
         self.strict += stats_.answered - stats_.equal
         self.asked_wrong += stats_.asked_wrong or 0
         self.inferred += stats_.inferred
         self.inferred_wrong += stats_.inferred_wrong or 0
+        # the clips the session showed: the distinct segments of its questions (a pairwise
+        # question shows two new ones, the others one beside the kept one)
+        self.clips += stats_.unique_segments
+
+
+class _CellRun:
+    """One cell's state between budgets: its streams, model, labels and counts."""
+
+    def __init__(
+        self, pool: Pool, cell: Cell, settings: BenchSettings, source: FeedbackSource | None
+    ) -> None:
+        self.pool, self.cell, self.settings = pool, cell, settings
+        train, held = pool.split()
+        length = settings.segment_length
+        self.heldout = pool.heldout_segments(held, settings.heldout_segments, length)
+        self.episodes = pool.store(train)
+        self.margin = pool.margin(train, length)
+        self.rng = np.random.default_rng(cell.seed)
+        self.generator = torch.Generator().manual_seed(cell.seed)
+        torch.manual_seed(cell.seed)
+        net, features = settings.net, pool.obs.shape[2] + pool.action.shape[2]
+        self.model = RewardModel(
+            net.ensemble, features, net.hidden, net.layers, net.lr, torch.device("cpu")
+        )
+        self.source = source if source is not None else make_source(cell.teacher)
+        self.plan = _plan(cell, settings)
+        # the learner's own stream (SURF's crops and unlabelled batches): the training
+        # shuffles stay those of the plain cell of the same scheme and seed
+        learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
+        self.learner = make_learner(cell.learner, learner_stream)
+        self.labels, self.tally, self.session = LabelStore(cell.weighting), _Tally(), 0
+        self.fitted = False  # whether the model has been fit yet (checked's second opinion)
+        self.started = time.perf_counter()
+
+    def ask_until(self, budget: int) -> None:
+        """Sessions until `budget` questions are asked (or the source runs out)."""
+        labels, tally = self.labels, self.tally
+        while tally.asked < budget and self.source.has_session(self.session):
+            questions = min(self.settings.session_questions, budget - tally.asked)
+            request = prepare_session(
+                self.plan, questions, self.episodes, self.model, self.session, self.rng,
+                False, self.margin, labels.teacher_contradicted(), self.fitted,
+            )  # fmt: skip
+            segments, record = self.source.ask_session(request)
+            stored = store_session(segments, record, labels, request)
+            tally.add(stored.stats)
+            tally.add_time(record)
+            self.session += 1
+
+    def fit_and_measure(self) -> dict[str, Any]:
+        """The model trained (warm-started) on every label so far; the budget's row."""
+        cell, net, tally = self.cell, self.settings.net, self.tally
+        length = self.settings.segment_length
+        seed = [cell.seed, 3, self.session]
+        give_unlabelled(self.learner, self.episodes, length, tally.asked, seed)
+        fit = self.model.train(
+            *self.labels.tensors(torch.device("cpu")),
+            net.epochs,
+            net.minibatch,
+            net.stop_accuracy,
+            self.generator,
+            sync_every_step=False,
+            learner=self.learner,
+        )
+        self.fitted = True
+        row = _row(self.pool, cell, tally, len(self.labels), self.heldout, self.model, fit)
+        cost = {
+            "clips": tally.clips,
+            "annotator_seconds": annotator_seconds(tally.clips, tally.asked, length),
+        }
+        seconds = {"seconds": time.perf_counter() - self.started}
+        return {**row, **cost, **seconds, **_crowd_measures(self.labels, tally)}
 
 
 def run_cell(
@@ -106,55 +179,13 @@ def run_cell(
 ) -> list[dict[str, Any]]:
     """One row per budget reached. `source` replaces the scripted teacher (replayed labels);
     it then stops early when its sessions run out."""
-    train, held = pool.split()
-    heldout = pool.heldout_segments(held, settings.heldout_segments, settings.segment_length)
-    episodes = pool.store(train)
-    margin = pool.margin(train, settings.segment_length)
-    rng = np.random.default_rng(cell.seed)
-    generator = torch.Generator().manual_seed(cell.seed)
-    torch.manual_seed(cell.seed)
-    net, cpu = settings.net, torch.device("cpu")
-    features = pool.obs.shape[2] + pool.action.shape[2]
-    model = RewardModel(net.ensemble, features, net.hidden, net.layers, net.lr, cpu)
-    source = source if source is not None else make_source(cell.teacher)
-    plan = _plan(cell, settings)
-    # the learner's own stream (SURF's crops and unlabelled batches): the training shuffles
-    # stay those of the plain cell of the same scheme and seed
-    learner_stream = torch.Generator().manual_seed(cell.seed * 10 + 4)
-    learner = make_learner(cell.learner, learner_stream)
-    labels, tally, session, rows = LabelStore(cell.weighting), _Tally(), 0, []
-    fitted = False  # whether the model has been fit yet (checked's second opinion)
-    started = time.perf_counter()
+    run, rows = _CellRun(pool, cell, settings, source), []
     for budget in settings.budgets:
-        while tally.asked < budget and source.has_session(session):
-            questions = min(settings.session_questions, budget - tally.asked)
-            contradicted = labels.teacher_contradicted()
-            request = prepare_session(
-                plan, questions, episodes, model, session, rng, False, margin, contradicted, fitted
-            )
-            segments, record = source.ask_session(request)
-            stored = store_session(segments, record, labels, request)
-            tally.add(stored.stats)
-            tally.add_time(record)
-            session += 1
-        if not len(labels):
+        run.ask_until(budget)
+        if not len(run.labels):
             continue  # every answer so far was a skip: nothing to learn from
-        give_unlabelled(
-            learner, episodes, settings.segment_length, tally.asked, [cell.seed, 3, session]
-        )
-        fit = model.train(
-            *labels.tensors(cpu),
-            net.epochs,
-            net.minibatch,
-            net.stop_accuracy,
-            generator,
-            sync_every_step=False,
-            learner=learner,
-        )
-        fitted = True
-        row = _row(pool, cell, tally, len(labels), heldout, model, fit, started)
-        rows.append({**row, **_crowd_measures(labels, tally)})
-        if tally.asked < budget:
+        rows.append(run.fit_and_measure())
+        if run.tally.asked < budget:
             break  # a replayed file ran out
     return rows
 
@@ -176,7 +207,6 @@ def _row(
     heldout: Segments,
     model: RewardModel,
     fit: RewardTrainResult,
-    started: float,
 ) -> dict[str, Any]:
     wrong = tally.inferred_wrong / tally.inferred if tally.inferred else None
     return {
@@ -196,7 +226,6 @@ def _row(
         **heldout_measures(model, heldout),
         "epochs": fit.epochs,  # of this budget's fit, and the learner's own measures
         **fit.learner,
-        "seconds": time.perf_counter() - started,
     }
 
 

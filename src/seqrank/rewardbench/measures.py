@@ -33,6 +33,11 @@ from seqrank.episodes import Segments
 PICK_FROM = 10  # k: segments the best is picked from
 PICK_DRAWS = 1000
 PICK_SEED = 2046  # the draws' fixed generator (the same for every cell)
+# the annotator's time under the paper's user study (supplementary D.7): the two clips
+# are played, then the answer is clicked within 3 s; the clips as the labelling page
+# plays them: one frame per step at its default frame rate (`seqrank label --fps`, 30)
+CLIP_FPS = 30
+ANSWER_SECONDS = 3.0
 
 
 class ReturnModel(Protocol):
@@ -97,3 +102,10 @@ def pick_regret(
     picked = drawn[np.arange(draws), predicted[drawn].argmax(1)]
     regret = truth[drawn].max(1) - truth[picked]
     return float(regret.mean()) / spread
+
+
+def annotator_seconds(clips: int, questions: int, segment_length: int) -> float:
+    """An annotator's time under the paper's user study (supplementary D.7): every new
+    clip played once (`segment_length` frames at `CLIP_FPS`), plus `ANSWER_SECONDS` (3 s)
+    per question to answer: segment_length / 30 x clips + 3 x questions."""
+    return segment_length / CLIP_FPS * clips + ANSWER_SECONDS * questions

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections import defaultdict
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -60,6 +59,9 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "seeds": len(members),
             "pairs": float(np.mean([m["pairs"] for m in members])),
             "asked_wrong": _mean_of([m.get("asked_wrong") for m in members]),
+            # what the questions cost an annotator (None for rows written before)
+            "clips": _mean_of([m.get("clips") for m in members]),
+            "annotator_seconds": _mean_of([m.get("annotator_seconds") for m in members]),
         }
         for measure in MEASURES:  # (rows written before a measure have none of it)
             values = [m[measure] for m in members if m.get(measure) is not None]
@@ -73,8 +75,8 @@ def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None
         "| task | teacher | method | questions | scheme | seeds | labelled pairs "
         "| accuracy [95% CI] | Spearman [95% CI] | top-quarter accuracy [95% CI] "
         "| top-10% recall [95% CI] | regret (best of 10) [95% CI] | wrong inferred "
-        "| wrong asked |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| wrong asked | clips | annotator minutes |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for e in summary:
         if budgets is not None and e["questions"] not in budgets:
@@ -86,12 +88,18 @@ def format_table(summary: list[dict[str, Any]], budgets: list[int] | None = None
             f"| {e['seeds']} "
             f"| {e['pairs']:.0f} | {_cell(e['accuracy'])} | {_cell(e['spearman'])} "
             f"| {_cell(e['top_accuracy'])} | {_cell(e['top_recall'])} | {_cell(e['regret'])} "
-            f"| {wrong} | {asked} |"
+            f"| {wrong} | {asked} | {_number(e.get('clips'), 1, '.0f')} "
+            f"| {_number(e.get('annotator_seconds'), 60, '.1f')} |"
         )
     return "\n".join(lines) + "\n"
 
 
+def _number(value: float | None, unit: float, form: str) -> str:
+    return "-" if value is None else format(value / unit, form)
+
+
 def _mean_of(values: list[float | None]) -> float | None:
+    """The mean of the known values (None when there is none)."""
     known = [v for v in values if v is not None]
     return float(np.mean(known)) if known else None
 
@@ -270,54 +278,3 @@ def _signed(value: Interval | None) -> str:
 
 def _sign(value: float) -> str:
     return f"{0.0 if abs(value) < 5e-4 else value:+.3f}"  # never "-0.000"
-
-
-def _band(value: Interval) -> tuple[float, float, float]:
-    """A curve's point and its shaded band (no width for one seed)."""
-    mean, low, high = value
-    return mean, mean if low is None else low, mean if high is None else high
-
-
-def plot_task(summary: list[dict[str, Any]], task: str, path: Path) -> Path:
-    """Each measure against questions asked, one line per scheme (and learner, when there
-    are several) with its 95% interval shaded, one row of panels per teacher."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    entries = [e for e in summary if e["task"] == task]
-    teachers = list(dict.fromkeys(e["teacher"] for e in entries))
-    learners = {e["learner"] for e in entries}
-    figure, axes = plt.subplots(
-        len(teachers),
-        len(MEASURES),
-        figsize=(4.6 * len(MEASURES), 3.6 * len(teachers)),
-        squeeze=False,
-    )
-    lines = list(dict.fromkeys((e["scheme"], e["learner"]) for e in entries))
-    for row, teacher in zip(axes, teachers, strict=True):
-        for axis, (measure, title) in zip(row, MEASURES.items(), strict=True):
-            for k, (scheme, learner) in enumerate(lines):  # one colour per line in every panel
-                points = [
-                    (e["questions"], *_band(e[measure]))
-                    for e in entries
-                    if (e["teacher"], e["scheme"], e["learner"]) == (teacher, scheme, learner)
-                    and e[measure]
-                ]
-                if not points:
-                    continue
-                x, mean, low, high = (np.array(column) for column in zip(*points, strict=True))
-                label = scheme if len(learners) == 1 else f"{scheme} ({learner})"
-                axis.plot(x, mean, marker="o", label=label, color=f"C{k % 10}")
-                axis.fill_between(x, low, high, color=f"C{k % 10}", alpha=0.2)
-            axis.set_title(f"{teacher}: {title}", fontsize=10)
-            axis.set_xlabel("questions asked")
-            axis.grid(alpha=0.3)
-            if axis.lines:
-                axis.legend(fontsize=8)
-    figure.suptitle(f"{task}: what the reward model learns per question (95% intervals)")
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
-    return path
