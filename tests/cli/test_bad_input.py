@@ -400,3 +400,19 @@ def test_a_setting_error_reads_plainly_everywhere_and_survives_pickling():
     again = pickle.loads(pickle.dumps(error))
     assert str(again) == plain
     assert again.spelled(str.upper) == "KNN_K 5 must be smaller than SEED_STEPS 1"
+
+
+@pytest.mark.parametrize("mode", ["online", "offline"])
+def test_a_wrong_task_is_named_before_a_busy_port(mode, tmp_path, monkeypatch, capsys):
+    import socket
+
+    monkeypatch.chdir(tmp_path)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = str(busy.getsockname()[1])
+        assert main(["label", mode, "--task", "walker_nope", "--port", port]) == 2
+        assert "unknown --task 'walker_nope'" in capsys.readouterr().err
+        assert main(["label", mode, "--task", "dmc:cartpole_swingup", "--port", port]) == 2
+        assert "cannot listen there" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -120,13 +120,12 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         err.print(text, highlight=False, markup=False, soft_wrap=True)
 
     page_options(args)  # check the page options before anything is created
-    if not getattr(args, "dry_run", False):
-        check_address(args.host, args.port)
     try:
         if args.mode == "offline":
             return _offline(args, say)
         if args.mode == "online":
             return _online(args, say, err)
+        _check_address(args)
         return run_study(args, say)
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
         raise UsageError(problem_with_flags(problem, args)) from None
@@ -190,6 +189,7 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
     from seqrank.labelling.human import Stopped
 
     options = _offline_options(args)
+    _check_address(args)  # the task and settings first: a wrong task outweighs a busy port
     default_out = (
         args.policy_run / "offline-labels"
         if args.policy_run is not None
@@ -231,6 +231,12 @@ def _settings_of(options: Any) -> dict[str, Any]:
     return settings
 
 
+def _check_address(args: argparse.Namespace) -> None:
+    """The page's address is free (a dry run only checks the settings)."""
+    if not getattr(args, "dry_run", False):
+        check_address(args.host, args.port)
+
+
 def check_clips(task: str) -> None:
     """A task whose clips the page could not show is refused before anything is made."""
     from seqrank.envs import make_env
@@ -264,7 +270,11 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
             hub.db.close()
             raise
 
-    started = prepare_run(args, err, make, resolve_device, lambda config: check_clips(config.task))
+    def check(config: Any) -> None:
+        check_clips(config.task)
+        _check_address(args)
+
+    started = prepare_run(args, err, make, resolve_device, check)
     if started is None:
         return 0  # --dry-run
     try:
