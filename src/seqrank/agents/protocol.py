@@ -1,7 +1,7 @@
 """The agent contract: everything the training loop asks of an agent.
 
 SAC and DQN satisfy it; MRN wraps another agent's update (`mrn.MetaRewardUpdate`). A new
-agent is added by satisfying this protocol and registering it in `agents.factory`.
+agent is added by satisfying this protocol and building it in `training/agent_factory.py`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""Soft actor-critic as SPEC section 2 states it (PEBBLE's settings), written once.
+"""Soft actor-critic as SPEC section 2 states it (PEBBLE's settings).
 
-The reference and fast paths are this one update run two ways (`Execution`): the fast path
+The reference path and the fast path on CUDA are this one autograd update run two ways
+(`Execution`): the fast path
 stacks the twin critics into batched matmuls, uses fused Adam, draws policy noise on the
 device and, on CUDA, replays the update from a captured graph (`cuda_graph.GraphedCall`);
 precision (fp32, TF32, bf16 autocast) is a context around the same code. On a CPU the fast
