@@ -292,6 +292,9 @@ CASES = [
     (["reward-bench", "run", "--pool", "m.npz", "--seeds", "0"], "argument --seeds: 0 is out"),
     (["reward-bench", "run", "--pool", "m.npz", "--budgets", "50,25"], "argument --budgets: '50"),
     (["reward-bench", "run", "--pool", "m.npz", "--teachers", "oracle,,x"], "an empty teacher"),
+    (["reward-bench", "run", "--pool", "m.npz", "--stops", "all,early"], "unknown stop rule 'ear"),
+    (["reward-bench", "run", "--pool", "m.npz", "--stops", "x"], "accepted: all, asked, never"),
+    (["reward-bench", "run", "--pool", "m.npz", "--augments", "off"], "accepted: full, checked, n"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
     (["reward-bench", "report", "{dir}"], "no rows in {dir}: give a folder that"),
     # watch, study-report

@@ -17,6 +17,7 @@ from seqrank.cli.options import Parser, int_between, names, positive, seed_numbe
 from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
+from seqrank.rewardbench.cells import AUGMENTS, STOPS
 
 if TYPE_CHECKING:
     from seqrank.feedback.replay import ReplaySource
@@ -132,10 +133,18 @@ def _add_grid(actions: Any) -> None:
     )
     grid.add_argument(
         "--augments",
-        type=names(["full", "checked"], "augmentation"),
+        type=names(AUGMENTS, "augmentation"),
         default=["full"],
-        help="full (the paper's closure), checked (noise-aware augmentation), "
-        "comma-separated (full)",
+        help="full (the paper's closure), checked (noise-aware augmentation), none (no "
+        "closure: the asked pairs alone), comma-separated (full)",
+    )
+    grid.add_argument(
+        "--stops",
+        type=names(STOPS, "stop rule"),
+        default=["all"],
+        help="what the reward fit's early stop counts its train accuracy over: all (every "
+        "label, asked and inferred, as a run does), asked (the asked pairs only), never (no "
+        "early stop: every one of --reward-epochs), comma-separated (all)",
     )
     grid.add_argument(
         "--weightings",
@@ -323,6 +332,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             learners=args.learners,
             augments=args.augments,
             weightings=args.weightings,
+            stops=args.stops,
         )
     try:
         write_report(rows, args.out, "plain", out)

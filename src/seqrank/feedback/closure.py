@@ -83,10 +83,13 @@ def augment(
     true_returns: TrueReturns | None = None,
     path_unchecked: int | None = None,
     vouched: Collection[tuple[int, int]] = frozenset(),
+    closure: bool = True,
 ) -> Augmentation:
     """Asked pairs with their labels plus every pair implied by transitivity (along paths
     of at most `path_unchecked` unconfirmed edges, when given). `vouched` winner-loser
-    edges count as confirmed on one answer (the reward model agreed with it)."""
+    edges count as confirmed on one answer (the reward model agreed with it). With
+    `closure` False nothing is inferred: the asked pairs alone (the reward benchmark's
+    `--augments none`, which separates what the inferred labels add)."""
     answers = list(answers)
     asked_pairs = [
         LabelledPair(a.first, a.second, label, inferred=False)
@@ -98,7 +101,9 @@ def augment(
     components = _strongly_connected(confirmed + single)
     cyclic = [c for c in components if len(c) > 1]
     cyclic_nodes = {node for c in cyclic for node in c}
-    if path_unchecked is None:
+    if not closure:
+        implied = []
+    elif path_unchecked is None:
         implied = _implied(confirmed + single, cyclic_nodes)
     else:
         implied = _implied_trusted(confirmed, single, cyclic_nodes, path_unchecked)

@@ -255,14 +255,17 @@ def store_session(
     record: SessionRecord,
     labels: LabelStore,
     request: SessionRequest,
+    closure: bool = True,
 ) -> SessionOutcome:
     """Augment the answers by transitivity (with `augment checked`, along paths of few
-    unconfirmed answers) and store asked and inferred pairs."""
+    unconfirmed answers) and store asked and inferred pairs; with `closure` False, the
+    asked pairs alone (the reward benchmark's `--augments none`)."""
     true_returns = segments.rewards.sum(axis=1)
     recheck = request.recheck
     path_unchecked = None if recheck is None else recheck.path_unchecked
     vouched = standing_vouched(record.answers, record.vouched)
-    augmentation = augment(record.answers, true_returns.tolist(), path_unchecked, vouched)
+    returns = true_returns.tolist()
+    augmentation = augment(record.answers, returns, path_unchecked, vouched, closure)
     labels.add_session(
         segments, true_returns, record.segments, augmentation, request.session, record
     )

@@ -186,47 +186,74 @@ class RewardModel:
         generator: torch.Generator,
         sync_every_step: bool = True,
         learner: Learner | None = None,
+        stop_pairs: torch.Tensor | None = None,
     ) -> RewardTrainResult:
         """Bradley-Terry on segment sums; each member its own shuffle of the epoch's pairs.
 
         labels: probability that `first` is preferred. Stops early once the mean train
         accuracy over hard labels exceeds `stop_accuracy`, but not before the learner's
-        `min_epochs`. `sync_every_step` reads the loss
-        back after every minibatch, as the reference code does; otherwise the sums stay on
-        the device and are read once per epoch, for the stopping rule. `learner` (plain by
-        default) chooses each epoch's pairs and each minibatch's loss.
+        `min_epochs`. `stop_pairs` (bool, one per pair; None: every pair) limits that
+        accuracy to the pairs it marks (the asked ones, say): a pair is known by its two
+        segments, so the marks follow the pairs a learner chooses and reorders each epoch
+        (two segments form one pair, asked or inferred, never both). `sync_every_step`
+        reads the loss back after every minibatch, as the reference code does; otherwise
+        the sums stay on the device and are read once per epoch, for the stopping rule.
+        `learner` (plain by default) chooses each epoch's pairs and each minibatch's loss.
         """
         learner = learner if learner is not None else PlainLearner()
         learner.start_fit()
+        counted = None if stop_pairs is None else _pair_keys(first, second, len(segments))
+        if counted is not None and stop_pairs is not None:
+            counted = counted[stop_pairs.to(counted.device)]
         loss_value, accuracy, epochs = 0.0, 0.0, 0
         for epochs in range(1, max_epochs + 1):
-            first_e, second_e, labels_e = learner.epoch_pairs(
-                self, segments, (first, second, labels)
+            pairs = learner.epoch_pairs(self, segments, (first, second, labels))
+            loss_sum, correct, total, steps = self._epoch(
+                learner, segments, pairs, minibatch, generator, sync_every_step, counted
             )
-            pairs = len(labels_e)
-            order = torch.stack(
-                [torch.randperm(pairs, generator=generator) for _ in range(self.members)]
-            ).to(self.device)
-            totals = torch.zeros(3, dtype=torch.float64, device=self.device)
-            host_totals, steps = np.zeros(3), 0
-            for start in range(0, pairs, minibatch):
-                idx = order[:, start : start + minibatch]  # (members, B)
-                step_totals = self._step(
-                    learner, segments, first_e[idx], second_e[idx], labels_e[idx]
-                )
-                if sync_every_step:
-                    host_totals += step_totals.cpu().numpy()
-                else:
-                    totals += step_totals
-                steps += 1
-            if not sync_every_step:
-                host_totals = totals.cpu().numpy()
-            loss_sum, correct, counted = host_totals
             loss_value = float(loss_sum) / max(steps, 1)  # (a learner may keep no pair)
-            accuracy = float(correct / counted) if counted else 1.0
+            accuracy = float(correct / total) if total else 1.0
             if accuracy > stop_accuracy and epochs >= learner.min_epochs:
                 break
         return RewardTrainResult(epochs, loss_value, accuracy, learner.fit_metrics())
+
+    def _epoch(
+        self,
+        learner: Learner,
+        segments: torch.Tensor,
+        pairs: Pairs,
+        minibatch: int,
+        generator: torch.Generator,
+        sync_every_step: bool,
+        counted: torch.Tensor | None,
+    ) -> tuple[float, float, float, int]:
+        """One pass over the epoch's pairs in minibatches: (summed loss, hits, hard labels
+        counted, steps). `counted`: the keys (`_pair_keys`) of the pairs the hits count."""
+        first_e, second_e, labels_e = pairs
+        size = len(labels_e)
+        order = torch.stack(
+            [torch.randperm(size, generator=generator) for _ in range(self.members)]
+        ).to(self.device)
+        mask = None
+        if counted is not None:
+            mask = torch.isin(_pair_keys(first_e, second_e, len(segments)), counted)
+        totals = torch.zeros(3, dtype=torch.float64, device=self.device)
+        host_totals, steps = np.zeros(3), 0
+        for start in range(0, size, minibatch):
+            idx = order[:, start : start + minibatch]  # (members, B)
+            step_totals = self._step(
+                learner, segments, first_e[idx], second_e[idx], labels_e[idx],
+                None if mask is None else mask[idx],
+            )  # fmt: skip
+            if sync_every_step:
+                host_totals += step_totals.cpu().numpy()
+            else:
+                totals += step_totals
+            steps += 1
+        if not sync_every_step:
+            host_totals = totals.cpu().numpy()
+        loss_sum, correct, total = host_totals
+        return loss_sum, correct, total, steps
 
     def _step(
         self,
@@ -235,14 +262,18 @@ class RewardModel:
         first: torch.Tensor,
         second: torch.Tensor,
         y: torch.Tensor,
+        counted: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """One optimiser step; returns (mean member loss, hits, hard labels) on the device."""
+        """One optimiser step; returns (mean member loss, hits, hard labels) on the device,
+        the hits and labels of the `counted` pairs only when given."""
         loss, logits = learner.loss(self, segments, first, second, y)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         self.optimizer.step()
         with torch.no_grad():
             hard = y != 0.5
+            if counted is not None:
+                hard = hard & counted
             hits = ((logits > 0) == (y > 0.5)) & hard
             parts = (loss.detach() / self.members, hits.sum(), hard.sum())
             return torch.stack([p.double() for p in parts])
@@ -253,3 +284,8 @@ class RewardModel:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.net.load_state_dict(state["net"])
         self.optimizer.load_state_dict(state["optimizer"])
+
+
+def _pair_keys(first: torch.Tensor, second: torch.Tensor, segments: int) -> torch.Tensor:
+    """One number per pair of segment indices, the same whichever comes first."""
+    return torch.minimum(first, second) * segments + torch.maximum(first, second)

@@ -24,10 +24,16 @@ A cell's `learner` (`RewardLearner`: plain, surf, rime; docs/concepts/reward-lea
 the ensemble learns from the labels, with its default settings; SURF's unlabelled pairs
 are cut from the training episodes. RIME's warm start has no place here: the benchmark
 has no pre-training phase, so every learner starts from a fresh model.
+
+Fitting controls separate what the inferred labels add from what the questions add: the
+`augment` none stores the asked pairs alone (no closure); the `stop` rule counts the
+fit's train accuracy over every label (`all`, a run's rule), over the asked pairs only
+(`asked`), or never stops early (`never`: every one of `RewardNet.epochs`).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -141,7 +147,8 @@ class _CellRun:
                 False, self.margin, labels.teacher_contradicted(), self.fitted,
             )  # fmt: skip
             segments, record = self.source.ask_session(request)
-            stored = store_session(segments, record, labels, request)
+            closure = self.cell.augment != "none"
+            stored = store_session(segments, record, labels, request, closure)
             tally.add(stored.stats)
             tally.add_time(record)
             self.session += 1
@@ -152,14 +159,16 @@ class _CellRun:
         length = self.settings.segment_length
         seed = [cell.seed, 3, self.session]
         give_unlabelled(self.learner, self.episodes, length, tally.asked, seed)
+        asked = torch.tensor([not inferred for inferred in self.labels.inferred])
         fit = self.model.train(
             *self.labels.tensors(torch.device("cpu")),
             net.epochs,
             net.minibatch,
-            net.stop_accuracy,
+            math.inf if cell.stop == "never" else net.stop_accuracy,
             self.generator,
             sync_every_step=False,
             learner=self.learner,
+            stop_pairs=asked if cell.stop == "asked" else None,
         )
         self.fitted = True
         row = _row(self.pool, cell, tally, len(self.labels), self.heldout, self.model, fit)
@@ -216,6 +225,7 @@ def _row(
         "learner": cell.learner,
         "augment": cell.augment,
         "weighting": cell.weighting,
+        "stop": cell.stop,
         "seed": cell.seed,
         "questions": tally.asked,
         "answered": tally.answered,

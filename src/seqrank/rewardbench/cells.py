@@ -14,7 +14,11 @@ AXES = {
     "learner": "plain",
     "augment": "full",
     "weighting": "reliability",
+    "stop": "all",
 }
+# the values of the fitting controls (issue 46, item 2)
+AUGMENTS = ("full", "checked", "none")  # none: closure off, the asked pairs alone
+STOPS = ("all", "asked", "never")  # the early stop's accuracy over; never: every epoch
 
 
 @dataclass(frozen=True)
@@ -25,6 +29,9 @@ class Cell:
     learner: str = "plain"
     augment: str = "full"  # checked: noise-aware augmentation (seqrank.feedback.checking)
     weighting: str = "reliability"  # a crowd's labels (`--crowd-weighting`): or none
+    # the early stop's train accuracy counted over all labels (a run's rule), over the
+    # asked pairs only, or never (every one of the net's epochs)
+    stop: str = "all"
 
     def key(self, task: str) -> tuple[Any, ...]:
         return _key(task, {axis: getattr(self, axis) for axis in AXES}, self.seed)

@@ -1,4 +1,5 @@
-"""Running the benchmark's grid: pools x teachers x seeds x schemes x learners, cells in parallel
+"""Running the benchmark's grid: pools x teachers x seeds x schemes x learners (and the
+other axes of `cells.AXES`), cells in parallel
 processes, each finished cell's rows appended to `rows.jsonl` at once, so a killed grid
 continues where it stopped and never repeats a finished cell."""
 
@@ -99,6 +100,7 @@ class Grid:
         learners: Sequence[str] = ("plain",),
         augments: Sequence[str] = ("full",),
         weightings: Sequence[str] = ("reliability",),
+        stops: Sequence[str] = ("all",),
     ) -> list[dict[str, Any]]:
         """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
         rows_path = self.out / "rows.jsonl"
@@ -107,10 +109,10 @@ class Grid:
         done = {row_key(r) for r in rows}
         # seed by seed: a grid stopped part way leaves every combination with the same seeds
         todo: dict[tuple[Any, ...], tuple[str, Cell]] = {}  # a cell once, whatever weighs it
-        for seed, path, teacher, learner, augment, weighting, scheme in product(
-            seeds, self.tasks, teachers, learners, augments, weightings, schemes
+        for seed, path, teacher, learner, augment, stop, weighting, scheme in product(
+            seeds, self.tasks, teachers, learners, augments, stops, weightings, schemes
         ):
-            cell = Cell(scheme, teacher, seed, learner, augment, weighting)
+            cell = Cell(scheme, teacher, seed, learner, augment, weighting, stop)
             if (key := cell.key(self.tasks[path])) not in done:
                 todo.setdefault(key, (path, cell))
         total, finished = len(todo) + len(done), len(done)
@@ -158,7 +160,8 @@ def run_grid(
     progress: Progress | None = None,
     learners: Sequence[str] = ("plain",),
     augments: Sequence[str] = ("full",),
+    stops: Sequence[str] = ("all",),
 ) -> list[dict[str, Any]]:
     """`open_grid` then `Grid.run`: every cell not in `out/rows.jsonl` yet."""
     grid = open_grid(pools, settings, out)
-    return grid.run(schemes, teachers, seeds, workers, progress, learners, augments)
+    return grid.run(schemes, teachers, seeds, workers, progress, learners, augments, stops=stops)

@@ -26,14 +26,19 @@ Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questio
 
 
 def method(row: dict[str, Any]) -> str:
-    """The reward learner, with `+checked` under noise-aware augmentation and `+weighted`
-    for a crowd's labels weighted by reliability: the names of the defaults (full closure,
-    a crowd's labels as answered) are bare, so a report's baseline is the default. Rows
-    written before these axes are plain, full and weighted."""
-    learner = row.get("learner", "plain")
-    learner = learner if row.get("augment", "full") == "full" else f"{learner}+checked"
+    """The reward learner, with a suffix per control away from its default: `+checked`
+    under noise-aware augmentation, `+no-closure` without closure, `+stop-asked` or
+    `+stop-never` for the stop rule, and `+weighted` for a crowd's labels weighted by
+    reliability. The names of the defaults (full closure, the stop over all labels, a
+    crowd's labels as answered) are bare, so a report's baseline is the default. Rows
+    written before these axes are plain, full, stopped over all and weighted."""
+    name = row.get("learner", "plain")
+    augment = row.get("augment", "full")
+    name += {"full": "", "none": "+no-closure"}.get(augment, f"+{augment}")
+    stop = row.get("stop", "all")
+    name += "" if stop == "all" else f"+stop-{stop}"
     weighted = weighs_labels(row.get("teacher", "")) and row.get("weighting") != "none"
-    return f"{learner}+weighted" if weighted else learner
+    return f"{name}+weighted" if weighted else name
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
