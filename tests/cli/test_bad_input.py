@@ -295,6 +295,8 @@ CASES = [
     (["reward-bench", "run", "--pool", "m.npz", "--stops", "all,early"], "unknown stop rule 'ear"),
     (["reward-bench", "run", "--pool", "m.npz", "--stops", "x"], "accepted: all, asked, never"),
     (["reward-bench", "run", "--pool", "m.npz", "--augments", "off"], "accepted: full, checked, n"),
+    (["reward-bench", "run", "--pool", "m.npz", "--orders", "sorted"], "unknown order 'sorted'; a"),
+    (["reward-bench", "run", "--pool", "m.npz", "--orders", "x"], "accepted: uniform, collection"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
     (["reward-bench", "report", "{dir}"], "no rows in {dir}: give a folder that"),
     # watch, study-report

@@ -4,7 +4,6 @@ saved trajectory pools without RL (pool, run, score)."""
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -12,31 +11,17 @@ from typing import TYPE_CHECKING, Any
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from seqrank.choices import RewardLearner
-from seqrank.cli.options import Parser, int_between, names, positive, seed_number
+from seqrank.cli.options import Parser, int_between, names, seed_number
+from seqrank.cli.reward_bench_options import add_grid_axes, add_grid_sizes
 from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
-from seqrank.rewardbench.cells import AUGMENTS, STOPS
 
 if TYPE_CHECKING:
     from seqrank.feedback.replay import ReplaySource
     from seqrank.training.launch import Started
 
 SCHEMES = [s.value for s in SchemeName]
-LEARNERS = [learner.value for learner in RewardLearner]
-
-
-def _budgets(text: str) -> list[int]:
-    try:
-        values = [int(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give whole numbers, comma-separated") from None
-    if not values or values[0] < 1 or values != sorted(set(values)):
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: give question counts of at least 1 that rise strictly, e.g. 25,50,100"
-        )
-    return values
 
 
 def teacher_list(text: str) -> list[str]:
@@ -124,75 +109,10 @@ def _add_grid(actions: Any) -> None:
         "teachers, e.g. 'oracle;beta=1'; or a simulated crowd, crowd:oracle+mistake+noisy "
         "(oracle)",
     )
-    grid.add_argument(
-        "--learners",
-        type=names(LEARNERS, "learner"),
-        default=["plain"],
-        help="reward learners, comma-separated (plain); RIME's warm start needs a "
-        "pre-training phase, which the benchmark has not",
-    )
-    grid.add_argument(
-        "--augments",
-        type=names(AUGMENTS, "augmentation"),
-        default=["full"],
-        help="full (the paper's closure), checked (noise-aware augmentation), none (no "
-        "closure: the asked pairs alone), comma-separated (full)",
-    )
-    grid.add_argument(
-        "--stops",
-        type=names(STOPS, "stop rule"),
-        default=["all"],
-        help="what the reward fit's early stop counts its train accuracy over: all (every "
-        "label, asked and inferred, as a run does), asked (the asked pairs only), never (no "
-        "early stop: every one of --reward-epochs), comma-separated (all)",
-    )
-    grid.add_argument(
-        "--weightings",
-        type=names(["reliability", "none"], "weighting"),
-        default=["none"],
-        help="a crowd teacher's labels: reliability (each the probability that its member "
-        "is right), none (as answered), comma-separated (none)",
-    )
+    add_grid_axes(grid)
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
-    _add_grid_sizes(grid)
+    add_grid_sizes(grid)
     grid.set_defaults(handler=run_grid)
-
-
-def _add_grid_sizes(grid: argparse.ArgumentParser) -> None:
-    """How much each cell asks and trains, and where the grid runs and writes."""
-    grid.add_argument(
-        "--budgets",
-        type=_budgets,
-        default=[25, 50, 100, 200],
-        help="question counts at which the reward model is trained and measured (25,50,100,200)",
-    )
-    grid.add_argument(
-        "--session-questions", type=positive, default=25, help="questions per session (25)"
-    )
-    grid.add_argument(
-        "--heldout-segments",
-        type=int_between(10, 10**6),
-        default=300,
-        help="held-out segments the measures are taken on (300)",
-    )
-    grid.add_argument(
-        "--reward-epochs",
-        type=int_between(1, 10_000),
-        default=30,
-        help="most epochs of reward training per budget (30)",
-    )
-    grid.add_argument(
-        "--workers",
-        type=int_between(1, 1024),
-        default=os.cpu_count() or 1,
-        help="cells at a time, one process and one thread each (the number of cores)",
-    )
-    grid.add_argument(
-        "--out",
-        type=Path,
-        default=Path("seqrank-out/reward-bench"),
-        help="the grid's folder; the same command continues it (seqrank-out/reward-bench)",
-    )
 
 
 def _add_score(actions: Any) -> None:
@@ -333,6 +253,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             augments=args.augments,
             weightings=args.weightings,
             stops=args.stops,
+            orders=args.orders,
         )
     try:
         write_report(rows, args.out, "plain", out)

@@ -28,14 +28,17 @@ has no pre-training phase, so every learner starts from a fresh model.
 Fitting controls separate what the inferred labels add from what the questions add: the
 `augment` none stores the asked pairs alone (no closure); the `stop` rule counts the
 fit's train accuracy over every label (`all`, a run's rule), over the asked pairs only
-(`asked`), or never stops early (`never`: every one of `RewardNet.epochs`).
+(`asked`), or never stops early (`never`: every one of `RewardNet.epochs`). The `order`
+gives a session's new segments as drawn (`uniform`) or the same ones in the order they
+were collected (`collection`, `order.py`); each row lists every session's inferred pairs
+and clips so far (`session_inferred`, `session_clips`: theory's M), for `seqrank theory`.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -45,7 +48,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import SessionRecord
+from seqrank.feedback.schemes import SessionRecord, in_order_choice
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
 from seqrank.feedback.teachers import parse_teacher
@@ -53,6 +56,7 @@ from seqrank.reward.learners import give_unlabelled, make_learner
 from seqrank.reward.model import RewardModel, RewardTrainResult
 from seqrank.rewardbench.cells import Cell
 from seqrank.rewardbench.measures import annotator_seconds, heldout_measures
+from seqrank.rewardbench.order import CollectionOrder
 from seqrank.rewardbench.pool import Pool
 
 
@@ -89,6 +93,8 @@ class _Tally:
         self.asked = self.answered = self.inferred = self.inferred_wrong = 0
         self.strict = self.asked_wrong = self.clips = 0
         self.seconds = self.person_seconds = 0.0
+        self.session_inferred: list[int] = []
+        self.session_clips: list[int] = []
 
     def add_time(self, record: SessionRecord) -> None:
         """A crowd's answering time: its sessions' lengths and everybody's time."""
@@ -106,6 +112,8 @@ class _Tally:
         # the clips the session showed: the distinct segments of its questions (a pairwise
         # question shows two new ones, the others one beside the kept one)
         self.clips += stats_.unique_segments
+        self.session_inferred.append(stats_.inferred)  # for `seqrank theory`'s expectation
+        self.session_clips.append(stats_.unique_segments)
 
 
 class _CellRun:
@@ -119,6 +127,9 @@ class _CellRun:
         length = settings.segment_length
         self.heldout = pool.heldout_segments(held, settings.heldout_segments, length)
         self.episodes = pool.store(train)
+        # where sessions cut their segments (SURF's unlabelled pairs stay uniform)
+        ordered = cell.order == "collection"
+        self.session_episodes = CollectionOrder(pool, train) if ordered else self.episodes
         self.margin = pool.margin(train, length)
         self.rng = np.random.default_rng(cell.seed)
         self.generator = torch.Generator().manual_seed(cell.seed)
@@ -143,9 +154,11 @@ class _CellRun:
         while tally.asked < budget and self.source.has_session(self.session):
             questions = min(self.settings.session_questions, budget - tally.asked)
             request = prepare_session(
-                self.plan, questions, self.episodes, self.model, self.session, self.rng,
+                self.plan, questions, self.session_episodes, self.model, self.session, self.rng,
                 False, self.margin, labels.teacher_contradicted(), self.fitted,
             )  # fmt: skip
+            if self.cell.order == "collection":  # the segments as sorted, in that order
+                request = replace(request, chooser=in_order_choice)
             segments, record = self.source.ask_session(request)
             closure = self.cell.augment != "none"
             stored = store_session(segments, record, labels, request, closure)
@@ -175,6 +188,8 @@ class _CellRun:
         cost = {
             "clips": tally.clips,
             "annotator_seconds": annotator_seconds(tally.clips, tally.asked, length),
+            "session_inferred": list(tally.session_inferred),
+            "session_clips": list(tally.session_clips),
         }
         seconds = {"seconds": time.perf_counter() - self.started}
         return {**row, **cost, **seconds, **_crowd_measures(self.labels, tally)}
@@ -226,6 +241,7 @@ def _row(
         "augment": cell.augment,
         "weighting": cell.weighting,
         "stop": cell.stop,
+        "order": cell.order,
         "seed": cell.seed,
         "questions": tally.asked,
         "answered": tally.answered,

@@ -15,10 +15,12 @@ AXES = {
     "augment": "full",
     "weighting": "reliability",
     "stop": "all",
+    "order": "uniform",
 }
 # the values of the fitting controls (issue 46, item 2)
 AUGMENTS = ("full", "checked", "none")  # none: closure off, the asked pairs alone
 STOPS = ("all", "asked", "never")  # the early stop's accuracy over; never: every epoch
+ORDERS = ("uniform", "collection")  # a session's new segments: as drawn, or as collected
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,10 @@ class Cell:
     # the early stop's train accuracy counted over all labels (a run's rule), over the
     # asked pairs only, or never (every one of the net's epochs)
     stop: str = "all"
+    # a session's new segments as a run draws them, or the same in collection order
+    # (`rewardbench.order`): an axis, not a setting, so that one folder pairs the two
+    # orders seed by seed in effects.md and a grid's uniform cells need not run again
+    order: str = "uniform"
 
     def key(self, task: str) -> tuple[Any, ...]:
         return _key(task, {axis: getattr(self, axis) for axis in AXES}, self.seed)

@@ -101,6 +101,7 @@ class Grid:
         augments: Sequence[str] = ("full",),
         weightings: Sequence[str] = ("reliability",),
         stops: Sequence[str] = ("all",),
+        orders: Sequence[str] = ("uniform",),
     ) -> list[dict[str, Any]]:
         """Every cell not in `out/rows.jsonl` yet; returns all rows of the grid."""
         rows_path = self.out / "rows.jsonl"
@@ -109,10 +110,12 @@ class Grid:
         done = {row_key(r) for r in rows}
         # seed by seed: a grid stopped part way leaves every combination with the same seeds
         todo: dict[tuple[Any, ...], tuple[str, Cell]] = {}  # a cell once, whatever weighs it
-        for seed, path, teacher, learner, augment, stop, weighting, scheme in product(
-            seeds, self.tasks, teachers, learners, augments, stops, weightings, schemes
+        axes = (learners, augments, stops, orders, weightings)
+        for seed, path, teacher, *controls, scheme in product(
+            seeds, self.tasks, teachers, *axes, schemes
         ):
-            cell = Cell(scheme, teacher, seed, learner, augment, weighting, stop)
+            learner, augment, stop, order, weighting = controls
+            cell = Cell(scheme, teacher, seed, learner, augment, weighting, stop, order)
             if (key := cell.key(self.tasks[path])) not in done:
                 todo.setdefault(key, (path, cell))
         total, finished = len(todo) + len(done), len(done)
@@ -161,7 +164,9 @@ def run_grid(
     learners: Sequence[str] = ("plain",),
     augments: Sequence[str] = ("full",),
     stops: Sequence[str] = ("all",),
+    orders: Sequence[str] = ("uniform",),
 ) -> list[dict[str, Any]]:
     """`open_grid` then `Grid.run`: every cell not in `out/rows.jsonl` yet."""
     grid = open_grid(pools, settings, out)
-    return grid.run(schemes, teachers, seeds, workers, progress, learners, augments, stops=stops)
+    axes = {"learners": learners, "augments": augments, "stops": stops, "orders": orders}
+    return grid.run(schemes, teachers, seeds, workers, progress, **axes)

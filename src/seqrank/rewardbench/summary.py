@@ -28,15 +28,17 @@ Group = tuple[str, str, str, str, int]  # task, teacher, method, scheme, questio
 def method(row: dict[str, Any]) -> str:
     """The reward learner, with a suffix per control away from its default: `+checked`
     under noise-aware augmentation, `+no-closure` without closure, `+stop-asked` or
-    `+stop-never` for the stop rule, and `+weighted` for a crowd's labels weighted by
-    reliability. The names of the defaults (full closure, the stop over all labels, a
-    crowd's labels as answered) are bare, so a report's baseline is the default. Rows
-    written before these axes are plain, full, stopped over all and weighted."""
+    `+stop-never` for the stop rule, `+collection` for segments in collection order, and
+    `+weighted` for a crowd's labels weighted by reliability. The names of the defaults
+    (full closure, the stop over all labels, uniform order, a crowd's labels as answered)
+    are bare, so a report's baseline is the default. Rows written before these axes are
+    plain, full, stopped over all, uniform and weighted."""
     name = row.get("learner", "plain")
     augment = row.get("augment", "full")
     name += {"full": "", "none": "+no-closure"}.get(augment, f"+{augment}")
-    stop = row.get("stop", "all")
+    stop, order = row.get("stop", "all"), row.get("order", "uniform")
     name += "" if stop == "all" else f"+stop-{stop}"
+    name += "" if order == "uniform" else f"+{order}"
     weighted = weighs_labels(row.get("teacher", "")) and row.get("weighting") != "none"
     return f"{name}+weighted" if weighted else name
 
