@@ -48,6 +48,14 @@ class CrowdWeighting(StrEnum):
     NONE = "none"  # every answer as given
 
 
+class StopOn(StrEnum):
+    """Which labels a session's reward training counts for its early stop
+    (`reward_stop_accuracy`)."""
+
+    ALL = "all"  # every label, asked and inferred: PEBBLE's rule, as the paper trains
+    ASKED = "asked"  # the asked pairs only: easy inferred pairs cannot end a fit at once
+
+
 class RewardSignal(StrEnum):
     """What the agent learns from."""
 

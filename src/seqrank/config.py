@@ -58,7 +58,9 @@ ASKING_ONLY = frozenset(
     }
 )
 # Read only when the reward model learns from labels (a no-feedback run's never does):
-REWARD_FITTING = frozenset({"reward_minibatch", "reward_epochs", "reward_stop_accuracy"})
+REWARD_FITTING = frozenset(
+    {"reward_minibatch", "reward_epochs", "reward_stop_accuracy", "reward_stop_on"}
+)
 # Read only by pre-training, the critic reset after it and the reward model, none of which
 # the true-reward agent has:
 PRETRAINING_AND_REWARD_MODEL = REWARD_FITTING | {

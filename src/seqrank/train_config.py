@@ -21,6 +21,7 @@ from seqrank.choices import (
     RewardSignal,
     Scale,
     Selection,
+    StopOn,
     TrainingPath,
     parse_choice,
 )
@@ -49,6 +50,7 @@ CHOICES: dict[str, type[Any]] = {
     "augment": Augment,
     "reward_learner": RewardLearner,
     "crowd_weighting": CrowdWeighting,
+    "reward_stop_on": StopOn,
 }
 
 
@@ -168,6 +170,7 @@ class TrainConfig:
     reward_minibatch: int = 128
     reward_epochs: int = 50
     reward_stop_accuracy: float = 0.97
+    reward_stop_on: StopOn = StopOn.ALL  # which labels that accuracy counts
     # reward learners beyond the paper (SURF, RIME): docs/concepts/reward-learners.md; the defaults
     # and their sources are in `SurfSettings` and `RimeSettings`
     reward_learner: RewardLearner = RewardLearner.PLAIN

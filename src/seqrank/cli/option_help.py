@@ -67,6 +67,8 @@ MEANINGS = {
     "reward_minibatch": "reward model: labelled pairs per minibatch",
     "reward_epochs": "reward model: most epochs per session",
     "reward_stop_accuracy": "reward model: stop a session's training at this accuracy",
+    "reward_stop_on": "which labels that accuracy counts: all (asked and inferred, PEBBLE's "
+    "rule) or asked (the asked pairs only)",
     "reward_learner": "plain (Bradley-Terry), surf (pseudo-labels, crops) or rime (robust "
     "label selection)",
     "surf_threshold": "SURF: confidence a pseudo-label needs",

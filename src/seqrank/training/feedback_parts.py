@@ -89,6 +89,7 @@ def make_reward_learning(
         config.segment_length,
         sync_every_step=not fast,
         relabel_chunk=65_536 if fast else 8_192,
+        stop_on=config.reward_stop_on,
     )
     learner = make_learner(
         config.reward_learner,

@@ -25,6 +25,7 @@ class RewardSettings:
     segment_length: int
     sync_every_step: bool  # read the loss back per minibatch (reference) or per epoch (fast)
     relabel_chunk: int
+    stop_on: str = "all"  # the labels the early stop counts: all, or the asked ones
 
 
 class RewardLearning:
@@ -57,6 +58,9 @@ class RewardLearning:
             self.learner, self.episodes, s.segment_length, asked, [run_seed, 3, session]
         )
         segments, first, second, labels = self.labels.tensors(self.model.device)
+        counted = None  # the pairs the early stop counts: every pair, or the asked ones
+        if s.stop_on == "asked":
+            counted = torch.tensor([not inferred for inferred in self.labels.inferred])
         return self.model.train(
             segments,
             first,
@@ -68,6 +72,7 @@ class RewardLearning:
             self.generator,
             sync_every_step=s.sync_every_step,
             learner=self.learner,
+            stop_pairs=counted,
         )
 
     def relabel(self) -> None:
