@@ -235,6 +235,8 @@ class RayBackend:
         except errors.WorkerCrashedError as error:  # what a forced cancel leaves
             return Ended(ref, interrupted=True) if self.stops else _ended_by(ref, error)
         except errors.RayError as error:
+            if self.stops:  # a cancel may land anywhere in a task that is just beginning
+                return Ended(ref, interrupted=True)  # its start (or none) tells which state
             return _ended_by(ref, getattr(error, "cause", None) or error)
 
     def cancel(self, handle: Any) -> bool:
