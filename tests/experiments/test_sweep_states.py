@@ -164,3 +164,35 @@ def test_after_a_stop_a_ray_task_ending_in_any_error_was_interrupted():
     backend.stops = 1
     ended = backend._ended("ref")
     assert ended.interrupted and ended.error is None
+
+
+def test_after_a_stop_ray_is_asked_again_to_cancel_a_task_still_running(monkeypatch):
+    """A cancel Ray did not deliver left a 200 000-step test run training on: a task still
+    running `RECANCEL_S` after the stop is cancelled again, and not before."""
+    pytest.importorskip("ray")
+    from seqrank.sweeps import engines
+
+    clock = [100.0]
+    monkeypatch.setattr(engines.time, "monotonic", lambda: clock[0])
+
+    class FakeRay:
+        def __init__(self) -> None:
+            self.cancels: list[str] = []
+
+        def cancel(self, ref, force=False):
+            self.cancels.append(ref)
+
+        def wait(self, pending, num_returns, timeout):
+            return [], pending
+
+    backend = engines.RayBackend.__new__(engines.RayBackend)
+    backend.ray, backend.pending, backend.stops, backend.cancelled_at = FakeRay(), ["run"], 0, 0.0
+    assert backend.ended(0.1) == [] and backend.ray.cancels == []  # no stop: nothing cancelled
+    backend.stop()
+    assert backend.ray.cancels == ["run"]
+    clock[0] += engines.RECANCEL_S - 1
+    backend.ended(0.1)
+    assert backend.ray.cancels == ["run"]  # a clean stop still has time
+    clock[0] += 2
+    backend.ended(0.1)
+    assert backend.ray.cancels == ["run", "run"]

@@ -19,6 +19,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,6 +101,9 @@ def train_run(
         return {"status": "resumed" if started.resumed else "trained", "summary": summary}
     finally:
         started.run.release()
+
+
+RECANCEL_S = 30.0  # after a stop, Ray's cancel is sent again to a task still running
 
 
 @dataclass(frozen=True)
@@ -210,7 +214,7 @@ class RayBackend:
         # the runs' starts: an actor that takes no CPU from the runs
         self.starts = Queue(actor_options={"num_cpus": 0})
         self.pending: list[Any] = []
-        self.stops = 0
+        self.stops, self.cancelled_at = 0, 0.0
 
     def submit(self, run: PlannedRun, path: Path, token: str) -> Any:
         config = run.config.as_dict()
@@ -224,7 +228,16 @@ class RayBackend:
 
     def ended(self, timeout: float) -> list[Ended]:
         ready, self.pending = self.ray.wait(self.pending, num_returns=1, timeout=timeout)
+        self._cancel_again()
         return [self._ended(ref) for ref in ready]
+
+    def _cancel_again(self) -> None:
+        """A cancel Ray did not deliver (seen: a task just begun trained on past its stop)
+        is sent again after `RECANCEL_S`; a run stopping cleanly is done by then."""
+        if self.stops and self.pending and time.monotonic() - self.cancelled_at > RECANCEL_S:
+            self.cancelled_at = time.monotonic()
+            for ref in self.pending:
+                self.ray.cancel(ref)
 
     def _ended(self, ref: Any) -> Ended:
         errors = self.ray.exceptions
@@ -248,6 +261,7 @@ class RayBackend:
         """Cancel every task (a run interrupted at once; the second time, its worker ended):
         a run continues later from its last checkpoint."""
         self.stops += 1
+        self.cancelled_at = time.monotonic()
         for ref in self.pending:
             self.ray.cancel(ref, force=self.stops > 1)
 
