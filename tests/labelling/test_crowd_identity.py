@@ -7,8 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from seqrank.labelling.crowd_source import open_team
-from support.pages import page_client, waiting_question_hub
+from support.pages import page_client, team_question_for_bob
 
 COOKIE = "seqrank_session_0"  # the test app's (a loopback access on port 0)
 NOBODY = "x" * 24
@@ -17,11 +16,7 @@ NOBODY = "x" * 24
 @pytest.fixture
 def team(tmp_path):
     """alice and bob at a page whose one question (id 1) is posed to bob."""
-    hub = waiting_question_hub(tmp_path / "labels")
-    open_team(hub, ["alice", "bob"], 0.0, 60.0)
-    question = hub.db.question(1)
-    assert question is not None
-    hub.crowd.tables.pose(question, 0, "bob", None)
+    hub = team_question_for_bob(tmp_path / "labels")
     yield hub
     hub.db.close()
 

@@ -9,8 +9,7 @@ import logging
 
 import pytest
 
-from seqrank.labelling.crowd_source import open_team
-from support.pages import page_client, waiting_question_hub
+from support.pages import page_client, team_question_for_bob
 
 ACCESS_LOG = "seqrank.labelling.access"
 SECRET = "\x1b[2Jsecret-body-text"  # what a body carries: never in the log, not even escaped
@@ -19,11 +18,7 @@ SECRET = "\x1b[2Jsecret-body-text"  # what a body carries: never in the log, not
 @pytest.fixture
 def team(tmp_path):
     """alice and bob at a page whose one question (id 1) is posed to bob."""
-    hub = waiting_question_hub(tmp_path / "labels")
-    open_team(hub, ["alice", "bob"], 0.0, 60.0)
-    question = hub.db.question(1)
-    assert question is not None
-    hub.crowd.tables.pose(question, 0, "bob", None)
+    hub = team_question_for_bob(tmp_path / "labels")
     yield hub
     hub.db.close()
 

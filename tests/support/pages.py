@@ -163,3 +163,15 @@ class Participant(threading.Thread):
                 httpx.post(f"{self.url}/api/survey", json=body)
             else:
                 time.sleep(0.05)
+
+
+def team_question_for_bob(directory: Path) -> Hub:
+    """alice and bob at a page whose one question (id 1) is posed to bob."""
+    from seqrank.labelling.crowd_source import open_team
+
+    hub = waiting_question_hub(directory)
+    open_team(hub, ["alice", "bob"], 0.0, 60.0)
+    question = hub.db.question(1)
+    assert question is not None
+    hub.crowd.tables.pose(question, 0, "bob", None)
+    return hub
