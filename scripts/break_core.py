@@ -46,6 +46,27 @@ BREAKS = (
         ("tests/training/test_session_effects.py",),
     ),
     Break(
+        "reward: the stop rule counts the inferred pairs when asked for the asked ones",
+        "training/reward_phase.py",
+        "[not inferred for inferred in self.labels.inferred]",
+        "[inferred for inferred in self.labels.inferred]",
+        ("tests/training/test_reward_stop_on.py",),
+    ),
+    Break(
+        "reward: the stop rule's pair marks inverted",
+        "reward/model.py",
+        "counted = counted[stop_pairs.to(counted.device)]",
+        "counted = counted[~stop_pairs.to(counted.device)]",
+        ("tests/reward/test_stop_rule.py",),
+    ),
+    Break(
+        "sac: a CPU acts with the actor in the update's precision",
+        "agents/sac.py",
+        "sampled, _, mean = squashed_gaussian(self.actor.net(obs_t), noise)",
+        "sampled, _, mean = self._policy(obs_t, noise)",
+        ("tests/agents/test_flat_update.py",),
+    ),
+    Break(
         "loop: no relabelling after a session",
         "training/feedback_phase.py",
         "c.asked)\n    reward.relabel()\n",
