@@ -1,5 +1,5 @@
 """The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
-report, bench, reward-bench, watch."""
+report, bench, reward-bench, dataset, watch."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from rich.console import Console
 
 import seqrank.cli.bench as bench
+import seqrank.cli.dataset as dataset
 import seqrank.cli.label as label
 import seqrank.cli.labels as labels
 import seqrank.cli.report as report
@@ -36,6 +37,7 @@ SUBCOMMANDS = (
     report,
     bench,
     reward_bench,
+    dataset,
     watch,
 )
 
