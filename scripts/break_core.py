@@ -178,6 +178,41 @@ BREAKS = (
         "trim_mean(np.asarray(values, np.float64), 0.2)",
         ("tests/experiments/test_report.py",),
     ),
+    Break(
+        "iql: the expectile weighs the wrong side (V tracks the 1 - tau expectile)",
+        "agents/iql.py",
+        "torch.where(diff > 0, expectile, 1 - expectile)",
+        "torch.where(diff > 0, 1 - expectile, expectile)",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: the advantage weight's sign flipped",
+        "agents/iql.py",
+        "torch.exp(temperature * (q - value))",
+        "torch.exp(temperature * (value - q))",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: the advantage weight not clipped",
+        "agents/iql.py",
+        "torch.exp(temperature * (q - value)).clamp(max=max_weight)",
+        "torch.exp(temperature * (q - value))",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: terminal transitions bootstrapped",
+        "agents/iql.py",
+        "return reward + discount * not_done * next_value",
+        "return reward + discount * next_value",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: the target critic pulled the wrong way (the critic follows its target)",
+        "agents/iql.py",
+        "soft_update(self.critic_target.parameters(), self.critic.parameters(), s.target_rate)",
+        "soft_update(self.critic.parameters(), self.critic_target.parameters(), s.target_rate)",
+        ("tests/agents/test_iql.py",),
+    ),
 )
 
 
