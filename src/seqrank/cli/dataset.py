@@ -71,7 +71,7 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
     """The input is checked before anything is played or written; a failure while
     writing leaves nothing behind (`save_episodes`)."""
     from seqrank.offline.make import MakeRequest, check_request, make_dataset
-    from seqrank.offline.minari_io import check_new
+    from seqrank.offline.minari_write import check_new
     from seqrank.offline.sources import parse_source
 
     try:

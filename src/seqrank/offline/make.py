@@ -12,14 +12,12 @@ import numpy as np
 from seqrank.envs.scoring import Metric, task_metric
 from seqrank.offline.minari_io import (
     Location,
-    PlayedEpisode,
-    check_new,
     episode_successes,
     load_dataset,
     read_metadata,
-    save_episodes,
     task_label,
 )
+from seqrank.offline.minari_write import PlayedEpisode, check_new, save_episodes
 from seqrank.offline.sources import (
     Source,
     check_source,

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from seqrank.episodes import Episode
 from seqrank.offline.dataset import OfflineDataset
 
 DATA_FORMAT = "hdf5"
@@ -44,20 +44,6 @@ class Location:
     @property
     def data(self) -> Path:
         return self.folder / "data"
-
-
-@dataclass(frozen=True)
-class PlayedEpisode:
-    """One episode as played: `observations` has one row more than `actions` (the last
-    observation, after the last action), as Minari stores episodes."""
-
-    observations: np.ndarray  # (T + 1, obs_dim) float32
-    actions: np.ndarray  # (T, act_dim) float32
-    rewards: np.ndarray  # (T,)
-    terminations: np.ndarray  # (T,) bool
-    truncations: np.ndarray  # (T,) bool
-    success: np.ndarray | None  # (T,) bool: the task's success signal, where recorded
-    seed: int | None  # the reset seed, where the episode is a function of one
 
 
 def datasets_root() -> Path:
@@ -281,105 +267,6 @@ def _flat_rows(values: Any, name: str | Path, what: str) -> np.ndarray:
     return rows.reshape(len(rows), -1).astype(np.float32)
 
 
-def save_episodes(
-    episodes: list[PlayedEpisode],
-    name_or_path: str | Path,
-    task: str,
-    provenance: dict[str, Any],
-    description: str,
-) -> Location:
-    """Write played episodes of `task` as a new Minari dataset; its folder must not
-    exist, and nothing is left behind when writing fails."""
-    from minari import __version__ as minari_version
-
-    location = check_new(name_or_path)
-    obs_dim, act_dim = episodes[0].observations.shape[1], episodes[0].actions.shape[1]
-    made = [p for p in (location.folder, *location.folder.parents) if not p.exists()]
-    try:
-        location.folder.mkdir(parents=True)
-        storage = _new_storage(location, task, obs_dim, act_dim)
-        storage.update_metadata(
-            {
-                "dataset_id": location.dataset_id,
-                "minari_version": minari_version,
-                "algorithm_name": provenance.get("algorithm", "seqrank dataset make"),
-                "description": description,
-                PROVENANCE_KEY: provenance,
-            }
-        )
-        storage.update_episodes(_buffers(episodes))
-    except BaseException:
-        shutil.rmtree(location.folder, ignore_errors=True)
-        for folder in reversed(made[:-1]):  # the parents this made, innermost first
-            if folder.is_dir() and not any(folder.iterdir()):
-                folder.rmdir()
-        raise
-    return location
-
-
-def check_new(name_or_path: str | Path) -> Location:
-    """Where a new dataset goes; a ValueError when something is already there."""
-    from seqrank.dirs import check_folder
-
-    location = locate(name_or_path)
-    if location.folder.exists():
-        raise ValueError(
-            f"dataset {name_or_path} already exists ({location.folder}); choose another name "
-            "or remove it"
-        )
-    check_folder(location.folder, "dataset")
-    return location
-
-
-def _new_storage(location: Location, task: str, obs_dim: int, act_dim: int) -> Any:
-    import gymnasium
-    from minari.dataset.minari_storage import MinariStorage
-
-    observation_space = gymnasium.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32)
-    action_space = gymnasium.spaces.Box(-1.0, 1.0, (act_dim,), np.float32)
-    return MinariStorage.new(
-        location.data,
-        observation_space=observation_space,
-        action_space=action_space,
-        env_spec=_env_spec(task),
-        data_format=DATA_FORMAT,
-        jpeg_encoding=False,
-    )
-
-
-def _env_spec(task: str) -> Any:
-    """The Gymnasium spec seqrank registers for the task (`seqrank/<task>`), so Minari's
-    `recover_environment` gives it back; None for a user's own factory."""
-    import gymnasium
-
-    import seqrank  # noqa: F401  (registers seqrank's ids)
-    from seqrank.registration import gymnasium_ids
-
-    ids = {name: env_id for env_id, name in gymnasium_ids().items()}
-    if task in ids:
-        return gymnasium.spec(ids[task])
-    if task.startswith("gym:"):
-        return gymnasium.spec(task.removeprefix("gym:"))
-    return None
-
-
-def _buffers(episodes: list[PlayedEpisode]) -> Iterator[Any]:
-    from minari.data_collector.episode_buffer import EpisodeBuffer
-
-    for index, episode in enumerate(episodes):
-        infos = None if episode.success is None else {"success": episode.success.astype(bool)}
-        yield EpisodeBuffer(
-            id=index,
-            seed=episode.seed,
-            observations=episode.observations.astype(np.float32),
-            actions=episode.actions.astype(np.float32),
-            rewards=list(np.asarray(episode.rewards, np.float64)),
-            terminations=list(episode.terminations.astype(bool)),
-            truncations=list(episode.truncations.astype(bool)),
-            infos=infos,
-        )
-
-
 def episode_successes(name_or_path: str | Path) -> np.ndarray | None:
     """Whether each episode succeeded at some step, where the dataset recorded success
     (`success` or `is_success` in its infos); None where it did not."""
@@ -392,3 +279,25 @@ def episode_successes(name_or_path: str | Path) -> np.ndarray | None:
             return None
         found.append(bool(np.any(flags)))
     return np.array(found, bool)
+
+
+def episodes_with_states(name_or_path: str | Path, task: str | None = None) -> list[Episode]:
+    """The dataset's episodes (checked as `load_dataset` checks them) with the physics
+    state each step began from and Meta-World's task index: what the labelling page
+    renders clips from. A ValueError where the dataset recorded no states."""
+    dataset = load_dataset(name_or_path, task)
+    location, _ = read_metadata(name_or_path)
+    episodes = dataset.episodes()
+    raw = (e for e in _minari_episodes(location, name_or_path) if len(e["rewards"]))
+    for episode, stored in zip(episodes, raw, strict=True):
+        infos = stored.get("infos") or {}
+        if "state" not in infos:
+            raise ValueError(
+                f"dataset {name_or_path} holds no physics states, from which the page renders "
+                "its clips: label a dataset made by `seqrank dataset make` from random or "
+                "scripted play (or from a run that recorded states)"
+            )
+        episode.states = np.asarray(infos["state"])[: len(episode.reward)]
+        if "task_index" in infos:
+            episode.context = int(np.asarray(infos["task_index"])[0])
+    return episodes

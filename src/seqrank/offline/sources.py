@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from seqrank.episodes import Episode
-from seqrank.offline.minari_io import PlayedEpisode
+from seqrank.offline.minari_write import PlayedEpisode
 
 KINDS = ("random", "scripted", "run:PATH")
 ACCEPTED = "random, scripted, scripted:SIGMA or run:PATH, each optionally =SHARE"
@@ -150,39 +150,46 @@ def play(
 
     reset_stream, act_stream = (np.random.default_rng(s) for s in seed_sequence.spawn(2))
     env = make_env(task, int(seed_sequence.generate_state(1)[0]))
-    episodes = []
     try:
-        for _ in range(count):
-            reset_seed = int(reset_stream.integers(2**31))
-            obs, _ = env.reset(seed=reset_seed)
-            rows: dict[str, list[Any]] = {k: [] for k in ("obs", "act", "rew", "term", "succ")}
-            done = truncated = False
-            while not done:
-                action = np.clip(policy(obs, act_stream), -1.0, 1.0).astype(np.float32)
-                next_obs, reward, terminated, truncated, info = env.step(action)
-                for key, value in zip(
-                    rows,
-                    (obs, env.canonical_action(action), reward, terminated, info["success"]),
-                    strict=True,
-                ):
-                    rows[key].append(value)
-                obs, done = next_obs, bool(terminated or truncated)
-            ends = np.zeros(len(rows["rew"]), bool)
-            ends[-1] = bool(truncated) and not rows["term"][-1]
-            episodes.append(
-                PlayedEpisode(
-                    np.array([*rows["obs"], obs], np.float32),
-                    np.array(rows["act"], np.float32),
-                    np.array(rows["rew"], np.float64),
-                    np.array(rows["term"], bool),
-                    ends,
-                    np.array(rows["succ"], bool),
-                    reset_seed,
-                )
-            )
+        return [_play_one(env, policy, int(reset_stream.integers(2**31)), act_stream)
+                for _ in range(count)]  # fmt: skip
     finally:
         env.close()
-    return episodes
+
+
+def _play_one(
+    env: Any,
+    policy: Callable[[np.ndarray, np.random.Generator], np.ndarray],
+    reset_seed: int,
+    rng: np.random.Generator,
+) -> PlayedEpisode:
+    """One episode, with a row per observation of success and physics state (the reset's
+    first: what Minari's infos hold)."""
+    obs, info = env.reset(seed=reset_seed)
+    rows: dict[str, list[Any]] = {"obs": [obs], "state": [env.get_state()], "succ": [False]}
+    rows |= {"act": [], "rew": [], "term": []}
+    done = truncated = False
+    while not done:
+        action = np.clip(policy(obs, rng), -1.0, 1.0).astype(np.float32)
+        obs, reward, terminated, truncated, step_info = env.step(action)
+        done = bool(terminated or truncated)
+        row = (obs, env.get_state(), step_info["success"], env.canonical_action(action),
+               reward, terminated)  # fmt: skip
+        for key, value in zip(rows, row, strict=True):
+            rows[key].append(value)
+    ends = np.zeros(len(rows["rew"]), bool)
+    ends[-1] = bool(truncated) and not rows["term"][-1]
+    return PlayedEpisode(
+        np.array(rows["obs"], np.float32),
+        np.array(rows["act"], np.float32),
+        np.array(rows["rew"], np.float64),
+        np.array(rows["term"], bool),
+        ends,
+        np.array(rows["succ"], bool),
+        reset_seed,
+        np.array(rows["state"], np.float64),
+        info.get("task_index"),
+    )
 
 
 def random_play(task: str, count: int, seeds: np.random.SeedSequence) -> list[PlayedEpisode]:
@@ -253,6 +260,10 @@ def run_episodes(source: Source, task: str, count: int | None) -> list[PlayedEpi
                 last & ~ended_early,
                 None,
                 None,
+                None
+                if episode.states is None
+                else np.concatenate([episode.states, episode.states[-1:]]),
+                episode.context,
             )
         )
     return out
