@@ -57,6 +57,19 @@ def _cpu_path_measurements_kept_apart(tmp_path_factory: pytest.TempPathFactory):
         os.environ["SEQRANK_CACHE"] = before
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _minari_datasets_kept_apart(tmp_path_factory: pytest.TempPathFactory):
+    """Minari's local datasets folder (~/.minari/datasets) is the test run's own: a
+    dataset a test names by id is made there, never in the user's home."""
+    before = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(tmp_path_factory.mktemp("minari-datasets"))
+    yield
+    if before is None:
+        os.environ.pop("MINARI_DATASETS_PATH", None)
+    else:
+        os.environ["MINARI_DATASETS_PATH"] = before
+
+
 def _checkout_changes() -> set[str] | None:
     """What `git status` lists in the checkout (changed and untracked files, ignored ones
     left out); None outside a git checkout (the wheel's test run)."""

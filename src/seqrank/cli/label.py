@@ -33,6 +33,7 @@ from seqrank.feedback.schemes import SCHEMES
 from seqrank.training.stopping import stop_on_signals
 
 OVERLAP = 0.1  # `label offline`: a team's share of questions asked twice (as TrainConfig)
+ROLLOUT_EPISODES = 4  # `label offline`: episodes rolled out when none are given
 
 
 def add_parser(commands: Any) -> None:
@@ -70,12 +71,21 @@ def _add_offline(modes: Any) -> None:
     offline = modes.add_parser(
         "offline",
         help="label segments of saved episodes, without training",
-        description="Roll out a run's saved policy (or random actions with --task), cut "
-        "segments, and ask --sessions sessions of --questions questions.",
+        description="Roll out a run's saved policy (or random actions with --task), or take "
+        "an offline dataset's episodes (--dataset), cut segments, and ask --sessions sessions "
+        "of --questions questions.",
     )
-    source = offline.add_mutually_exclusive_group(required=True)
+    source = offline.add_mutually_exclusive_group()
     source.add_argument("--from", dest="policy_run", type=Path, help="a run directory to roll out")
-    source.add_argument("--task", help="a task acted on at random, e.g. dmc:walker_walk")
+    source.add_argument(
+        "--task", help="a task acted on at random, e.g. dmc:walker_walk; with --dataset, its task"
+    )
+    offline.add_argument(
+        "--dataset",
+        help="segments of this offline dataset's episodes instead of a rollout: a Minari "
+        "dataset id or folder made by `seqrank dataset make` (its clips are rendered from the "
+        "physics states it keeps)",
+    )
     offline.add_argument(
         "--scheme", choices=tuple(SCHEMES), default="sequential", help="how questions are asked"
     )
@@ -92,7 +102,9 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument(
         "--segment-length", type=positive, help="steps (the task's: 50, block:place 30)"
     )
-    offline.add_argument("--episodes", type=positive, default=4, help="episodes rolled out (4)")
+    offline.add_argument(
+        "--episodes", type=positive, help="episodes rolled out (4; with --dataset, all of its)"
+    )
     offline.add_argument(
         "--seed", type=seed_number, default=0, help="seeds the rollouts and the segments drawn (0)"
     )
@@ -139,13 +151,18 @@ def _offline_options(args: argparse.Namespace) -> Any:
     from seqrank.labelling.app import OfflineOptions, check_task_name
     from seqrank.training.runs import RunDir
 
-    if args.policy_run is not None:
+    episodes = args.episodes if args.episodes is not None else ROLLOUT_EPISODES
+    if args.dataset is not None:
+        task, episodes = _dataset_source(args)
+    elif args.policy_run is not None:
         run = RunDir.open(args.policy_run)
         task = run.read_config().task
         if not run.checkpoint_path.exists():
             raise ValueError(f"{args.policy_run} has no checkpoint yet, so no policy to roll out")
-    else:
+    elif args.task is not None:
         task = check_task_name(args.task)
+    else:
+        raise ValueError("give the episodes to label: --from RUN, --task TASK or --dataset NAME")
     length = args.segment_length or resolve_config(task, "small", {}).segment_length
     env = make_env(task, args.seed)
     try:
@@ -164,19 +181,44 @@ def _offline_options(args: argparse.Namespace) -> Any:
             f"--overlap {args.overlap} acts on a team's answers; one person answers here: "
             "leave it out, or name a team with --annotators"
         )
+    if args.dataset is not None:
+        _check_dataset_budget(args, length, team)
     return OfflineOptions(
         task,
         args.scheme,
         args.questions,
         args.sessions,
         length,
-        args.episodes,
+        episodes,
         args.seed,
         args.policy_run,
         args.augment,
         team,
         args.overlap,
+        args.dataset,
     )
+
+
+def _dataset_source(args: argparse.Namespace) -> tuple[str, int]:
+    """The dataset's task and episode count, checked (a task it is not of, sizes, the
+    physics states its clips need); `--from` and `--episodes` refused beside it."""
+    from seqrank.offline.minari_io import episodes_with_states, load_dataset
+
+    if args.policy_run is not None or args.episodes is not None:
+        given = "--from" if args.policy_run is not None else "--episodes"
+        raise ValueError(f"--dataset gives the episodes to label: leave out {given}")
+    episodes_with_states(args.dataset, args.task)  # refuses a dataset the page cannot show
+    dataset = load_dataset(args.dataset, args.task)
+    return dataset.task, dataset.episode_count
+
+
+def _check_dataset_budget(args: argparse.Namespace, length: int, team: tuple[str, ...]) -> None:
+    from seqrank.offline.labelling import check_budget
+    from seqrank.offline.minari_io import load_dataset
+
+    dataset = load_dataset(args.dataset, args.task)
+    budget = args.questions * args.sessions
+    check_budget(dataset, args.scheme, budget, args.questions, length, len(team))
 
 
 def _offline(args: argparse.Namespace, say: Any) -> int:

@@ -66,6 +66,11 @@ def _add_pool(actions: Any) -> None:
         "training one",
     )
     pool.add_argument(
+        "--from-dataset",
+        help="take the episodes of this offline dataset (a Minari dataset id or folder, "
+        "`seqrank dataset make`) instead of training a run",
+    )
+    pool.add_argument(
         "--until-step",
         type=int_between(1, 10**8),
         help="with --from-run: only the episodes that ended by this step (the pool of a "
@@ -81,8 +86,7 @@ def _add_pool(actions: Any) -> None:
     pool.add_argument(
         "--random-episodes",
         type=int_between(0, 10_000),
-        default=5,
-        help="episodes of random actions added to the pool (5)",
+        help="episodes of random actions added to the pool (5; 0 with --from-dataset)",
     )
     pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
     pool.set_defaults(handler=run_pool)
@@ -131,6 +135,9 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_file
     from seqrank.rewardbench.pool import kept_episodes, pool_from_kept, save_pool
 
+    if args.from_dataset is not None:
+        return _pool_from_dataset(args, out)
+    args.random_episodes = 5 if args.random_episodes is None else args.random_episodes
     try:
         check_file(args.out, "pool file")
         if args.until_step is not None and args.from_run is None:
@@ -146,13 +153,38 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
         raise UsageError(str(problem)) from None
     pool = pool_from_kept(kept, args.random_episodes, args.seed)
     save_pool(pool, args.out)
+    _say_pool(pool, args.out, out)
+    return 0
+
+
+def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
+    from seqrank.dirs import check_file
+    from seqrank.offline.minari_io import load_dataset
+    from seqrank.rewardbench.pool import check_pool_size, pool_from_dataset, save_pool
+
+    random_count = args.random_episodes or 0
+    try:
+        if args.from_run is not None or args.until_step is not None:
+            raise ValueError("--from-dataset takes a dataset's episodes: leave out --from-run "
+                             "and --until-step")  # fmt: skip
+        check_file(args.out, "pool file")
+        dataset = load_dataset(args.from_dataset)
+        check_pool_size(dataset.episode_count + random_count, f"dataset {args.from_dataset}")
+    except ValueError as problem:
+        raise UsageError(str(problem)) from None
+    pool = pool_from_dataset(dataset, random_count, args.seed)
+    save_pool(pool, args.out)
+    _say_pool(pool, args.out, out)
+    return 0
+
+
+def _say_pool(pool: Any, path: Path, out: Console) -> None:
     returns = pool.returns
     out.print(
-        f"pool {args.out}: {len(pool)} episodes of {pool.task} (returns {returns.min():.0f} to "
+        f"pool {path}: {len(pool)} episodes of {pool.task} (returns {returns.min():.0f} to "
         f"{returns.max():.0f}, median {float(sorted(returns)[len(returns) // 2]):.0f})",
         highlight=False,
     )
-    return 0
 
 
 def _start_pool_run(args: argparse.Namespace) -> Started:

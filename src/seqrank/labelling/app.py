@@ -1,7 +1,8 @@
 """Running the labelling page: the web server thread and the three drivers.
 
 - online: a training run whose teacher is the person at the page (`HumanSource`).
-- offline: sessions over segments cut from episodes of a saved run's policy, no training.
+- offline: sessions over segments cut from episodes of a saved run's policy (or of an offline
+  dataset), no training.
 - study: the D.7 protocol, one online run per method for one participant, each followed by
   the satisfaction survey.
 
@@ -171,11 +172,23 @@ class OfflineOptions:
     augment: str = "full"  # checked: answers that would imply many pairs are asked again
     annotators: tuple[str, ...] = ()  # a team sharing the sessions out (empty: one person)
     overlap: float = 0.1  # a team's share of answers also asked of a second annotator
+    dataset: str | None = None  # an offline dataset whose episodes are labelled (no rollout)
 
 
 def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
-    """Episodes with their physics states, acted by a run's saved policy or at random."""
+    """Episodes with their physics states, acted by a run's saved policy or at random, or
+    an offline dataset's (which keeps its physics states)."""
     import torch
+
+    if options.dataset is not None:
+        from seqrank.offline.minari_io import episodes_with_states
+
+        taken = episodes_with_states(options.dataset, options.task)
+        say(f"{len(taken)} episodes of dataset {options.dataset}")
+        store = EpisodeStore(len(taken))
+        for episode in taken:
+            store.add(episode)
+        return store
 
     env = make_env(options.task, options.seed)
     agent = _saved_policy(options.policy_run, env) if options.policy_run else None

@@ -18,9 +18,9 @@ one episode: a uniform episode, then a uniform start within it; an episode short
 the segment gives its whole self, padded with its last step at zero true reward (what an
 absorbing terminal state would show). Short episodes are thus drawn as often as long ones.
 
-Minari's format was considered: its datasets need its own package and storage layout for
-what is here three arrays, and nothing in this project reads Minari datasets, so a plain
-`.npz` that numpy alone opens is kept.
+A pool is kept as a plain `.npz` that numpy alone opens; an offline dataset (Minari's
+format, `seqrank dataset make`) becomes one with `pool_from_dataset`, so the benchmark
+scores labels on that dataset's segments (`reward-bench pool --from-dataset`).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ import numpy as np
 
 from seqrank.envs import make_env
 from seqrank.episodes import Episode, EpisodeStore, Segments
+from seqrank.offline.dataset import OfflineDataset
 
 FORMAT = "seqrank-pool-2"
 FORMATS = ("seqrank-pool-1", FORMAT)  # those this reads: 1 has no `length`
@@ -192,6 +193,17 @@ def _padded(rows: list[np.ndarray], steps: int) -> np.ndarray:
     for k, row in enumerate(rows):
         out[k, : len(row)] = row
     return out
+
+
+def pool_from_dataset(dataset: OfflineDataset, random_count: int, seed: int) -> Pool:
+    """An offline dataset's episodes (origin: their index in the dataset) with
+    `random_count` episodes of random play."""
+    episodes = dataset.episodes()
+    check_pool_size(len(episodes) + random_count, f"dataset {dataset.meta.get('dataset_id')}")
+    extra = random_episodes(dataset.task, random_count, seed)
+    meta = {"dataset": dataset.meta.get("dataset_id"), "dataset_path": dataset.meta.get("path"),
+            "random_episodes": random_count, "random_seed": seed}  # fmt: skip
+    return pool_from_episodes(dataset.task, episodes, 0, extra, meta)
 
 
 @dataclass(frozen=True)
