@@ -6,9 +6,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from seqrank.cli import main
+from seqrank.episodes import Episode
+from seqrank.rewardbench.pool import pool_from_episodes, save_pool
 from seqrank.training.runs import RunDir
 from support.labels import write_labels
 from support.runs import tiny_config
@@ -27,7 +30,8 @@ def given(tmp_path: Path) -> dict[str, str]:
     """Things a command may be pointed at: a plain file, a folder, a run directory (no
     checkpoint), a folder of runs, sweep files, label files (sequential answers on
     dmc:cartpole_swingup, two sessions of 4 on 20-step segments; one of 7 features per step
-    that names no task; one of two schemes)."""
+    that names no task; one of two schemes), a reward-bench pool (a run's 4 episodes of 100
+    steps)."""
     folder = tmp_path / "given"
     (folder / "runs").mkdir(parents=True)
     (folder / "a-file").write_text("not a folder\n")
@@ -48,11 +52,15 @@ def given(tmp_path: Path) -> dict[str, str]:
     }
     for name, text in sweeps.items():
         (folder / f"{name}.toml").write_text(text)
+    steps = np.zeros((100, 3), np.float32)
+    episodes = [Episode(steps, steps[:, :1], np.zeros(100)) for _ in range(4)]
+    save_pool(pool_from_episodes("cartpole_swingup", episodes, 0, [], {}), folder / "pool.npz")
     return {
         "file": str(folder / "a-file"),
         "dir": str(folder),
         "run": str(folder / "runs" / "run"),
         "runs": str(folder / "runs"),
+        "pool": str(folder / "pool.npz"),
         **{name: str(path) for name, path in labels.items()},
         **{name: str(folder / f"{name}.toml") for name in sweeps},
     }
@@ -297,6 +305,9 @@ CASES = [
     (["reward-bench", "run", "--pool", "m.npz", "--augments", "off"], "accepted: full, checked, n"),
     (["reward-bench", "run", "--pool", "m.npz", "--orders", "sorted"], "unknown order 'sorted'; a"),
     (["reward-bench", "run", "--pool", "m.npz", "--orders", "x"], "accepted: uniform, collection"),
+    (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "0"], "--window-steps: 0 is o"),
+    (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "50"], "ended within window 0"),
+    (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "150"], "2 complete windows"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
     (["reward-bench", "report", "{dir}"], "no rows in {dir}: give a folder that"),
     # watch, study-report

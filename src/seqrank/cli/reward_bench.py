@@ -238,8 +238,9 @@ def _check_scripted(teachers: list[str]) -> None:
 
 
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
-    """The input (pools, folder, teachers, settings) is checked before anything is written
-    or run; a cell that fails afterwards is a fault of the code: a traceback, not exit 2."""
+    """The input (pools, folder, teachers, settings; under --window-steps, each pool's
+    windows) is checked before anything is written or run; a cell that fails afterwards
+    is a fault of the code: a traceback, not exit 2."""
     from seqrank.dirs import check_folder
     from seqrank.rewardbench.bench import BenchSettings, RewardNet
     from seqrank.rewardbench.grid import open_grid
@@ -255,6 +256,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             args.session_questions,
             heldout_segments=args.heldout_segments,
             net=RewardNet(epochs=args.reward_epochs),
+            window_steps=args.window_steps,
         )
         grid = open_grid(args.pool, settings, args.out)
     except ValueError as problem:

@@ -1,5 +1,6 @@
 """`seqrank reward-bench run`'s options: the grid's axes (how the answers are learnt from,
-the order segments come in) and its sizes (budgets, sessions, epochs, workers, folder)."""
+the order segments come in) and its sizes (budgets, sessions, windows, epochs, workers,
+folder)."""
 
 from __future__ import annotations
 
@@ -83,6 +84,17 @@ def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
         type=int_between(10, 10**6),
         default=300,
         help="held-out segments the measures are taken on (300)",
+    )
+    grid.add_argument(
+        "--window-steps",
+        type=int_between(1, 10**9),
+        default=None,
+        metavar="N",
+        help="sessions that follow a learning policy, one per window of N steps of the "
+        "pool's run: session k asks about the run's episodes whose last step is within "
+        "steps k*N to (k+1)*N - 1, and each budget is scored on the next window's episodes, "
+        "with no held-out split (off: every session on the training episodes, scored on "
+        "the held-out ones)",
     )
     grid.add_argument(
         "--reward-epochs",

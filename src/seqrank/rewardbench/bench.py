@@ -32,6 +32,17 @@ fit's train accuracy over every label (`all`, a run's rule), over the asked pair
 gives a session's new segments as drawn (`uniform`) or the same ones in the order they
 were collected (`collection`, `order.py`); each row lists every session's inferred pairs
 and clips so far (`session_inferred`, `session_clips`: theory's M), for `seqrank theory`.
+
+**Windows** (`window_steps` N, `--window-steps`; off by default): pools that follow a
+learning policy, one session per window of the pool's run (`windows.py`). Session k cuts
+its segments from the run's episodes that ended within steps [kN, (k+1)N) (in collection
+order under `collection`), with the teacher's margin from them; the model is trained on
+every label so far and each budget's row is scored on the next window's episodes (window
+k+1, k the last session asked), as an online run meets the data its policy collects next.
+There is no return-rank split then: the future window is the held-out data; SURF's
+unlabelled pairs come from the windows seen so far. Rows carry `window` (k) and
+`scored_window` (k+1). The pool must hold its run's episodes from the first on, with a
+window for each session and one more to score on.
 """
 
 from __future__ import annotations
@@ -39,12 +50,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
 
-from seqrank.episodes import Segments
+from seqrank.episodes import EpisodeStore, Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats
 from seqrank.feedback.labels import LabelStore
@@ -58,6 +69,7 @@ from seqrank.rewardbench.cells import Cell
 from seqrank.rewardbench.measures import annotator_seconds, heldout_measures
 from seqrank.rewardbench.order import CollectionOrder
 from seqrank.rewardbench.pool import Pool
+from seqrank.rewardbench.windows import WindowedEpisodes, checked_windows
 
 
 @dataclass(frozen=True)
@@ -80,12 +92,15 @@ class BenchSettings:
     segment_length: int = 50
     heldout_segments: int = 300
     net: RewardNet = RewardNet()
+    window_steps: int | None = None  # a session per window of the pool's run (`windows.py`)
 
     def __post_init__(self) -> None:
         if not self.budgets or list(self.budgets) != sorted(set(self.budgets)):
             raise ValueError(f"budgets must rise strictly, got {list(self.budgets)}")
         if self.budgets[0] < 1 or self.session_questions < 1:
             raise ValueError("budgets and session questions must be at least 1")
+        if self.window_steps is not None and self.window_steps < 1:
+            raise ValueError(f"--window-steps must be at least 1, got {self.window_steps}")
 
 
 class _Tally:
@@ -116,6 +131,56 @@ class _Tally:
         self.session_clips.append(stats_.unique_segments)
 
 
+class _CellEpisodes(Protocol):
+    """Where a cell's sessions, unlabelled pairs and measures take their episodes, by the
+    session asked (`for_session`, `margin`) or the number asked so far (the others)."""
+
+    def for_session(self, session: int) -> EpisodeStore: ...
+    def margin(self, session: int) -> float: ...
+    def seen(self, sessions: int) -> EpisodeStore: ...
+    def heldout(self, sessions: int) -> Segments: ...
+    def row_fields(self, sessions: int) -> dict[str, int]: ...
+
+
+class _SplitEpisodes:
+    """The pool split by return rank: every session on the training episodes, every
+    budget scored on one fixed sample of the held-out ones."""
+
+    def __init__(self, pool: Pool, collection: bool, settings: BenchSettings) -> None:
+        train, held = pool.split()
+        length = settings.segment_length
+        self.fixed_heldout = pool.heldout_segments(held, settings.heldout_segments, length)
+        self.train = pool.store(train)
+        # where sessions cut their segments (SURF's unlabelled pairs stay uniform)
+        self.sessions = CollectionOrder(pool, train) if collection else self.train
+        self.fixed_margin = pool.margin(train, length)
+
+    def for_session(self, session: int) -> EpisodeStore:
+        return self.sessions
+
+    def margin(self, session: int) -> float:
+        return self.fixed_margin
+
+    def seen(self, sessions: int) -> EpisodeStore:
+        return self.train
+
+    def heldout(self, sessions: int) -> Segments:
+        return self.fixed_heldout
+
+    def row_fields(self, sessions: int) -> dict[str, int]:
+        return {}  # rows as they were before windows
+
+
+def _cell_episodes(pool: Pool, cell: Cell, settings: BenchSettings) -> _CellEpisodes:
+    collection = cell.order == "collection"
+    if settings.window_steps is None:
+        return _SplitEpisodes(pool, collection, settings)
+    budgets, questions = settings.budgets, settings.session_questions
+    windows = checked_windows(pool, settings.window_steps, budgets, questions)
+    length, count = settings.segment_length, settings.heldout_segments
+    return WindowedEpisodes(pool, windows, collection, length, count)
+
+
 class _CellRun:
     """One cell's state between budgets: its streams, model, labels and counts."""
 
@@ -123,14 +188,7 @@ class _CellRun:
         self, pool: Pool, cell: Cell, settings: BenchSettings, source: FeedbackSource | None
     ) -> None:
         self.pool, self.cell, self.settings = pool, cell, settings
-        train, held = pool.split()
-        length = settings.segment_length
-        self.heldout = pool.heldout_segments(held, settings.heldout_segments, length)
-        self.episodes = pool.store(train)
-        # where sessions cut their segments (SURF's unlabelled pairs stay uniform)
-        ordered = cell.order == "collection"
-        self.session_episodes = CollectionOrder(pool, train) if ordered else self.episodes
-        self.margin = pool.margin(train, length)
+        self.episodes = _cell_episodes(pool, cell, settings)
         self.rng = np.random.default_rng(cell.seed)
         self.generator = torch.Generator().manual_seed(cell.seed)
         torch.manual_seed(cell.seed)
@@ -153,9 +211,11 @@ class _CellRun:
         labels, tally = self.labels, self.tally
         while tally.asked < budget and self.source.has_session(self.session):
             questions = min(self.settings.session_questions, budget - tally.asked)
+            episodes = self.episodes.for_session(self.session)
             request = prepare_session(
-                self.plan, questions, self.session_episodes, self.model, self.session, self.rng,
-                False, self.margin, labels.teacher_contradicted(), self.fitted,
+                self.plan, questions, episodes, self.model, self.session, self.rng,
+                False, self.episodes.margin(self.session), labels.teacher_contradicted(),
+                self.fitted,
             )  # fmt: skip
             if self.cell.order == "collection":  # the segments as sorted, in that order
                 request = replace(request, chooser=in_order_choice)
@@ -171,7 +231,8 @@ class _CellRun:
         cell, net, tally = self.cell, self.settings.net, self.tally
         length = self.settings.segment_length
         seed = [cell.seed, 3, self.session]
-        give_unlabelled(self.learner, self.episodes, length, tally.asked, seed)
+        seen = self.episodes.seen(self.session)
+        give_unlabelled(self.learner, seen, length, tally.asked, seed)
         asked = torch.tensor([not inferred for inferred in self.labels.inferred])
         fit = self.model.train(
             *self.labels.tensors(torch.device("cpu")),
@@ -184,7 +245,8 @@ class _CellRun:
             stop_pairs=asked if cell.stop == "asked" else None,
         )
         self.fitted = True
-        row = _row(self.pool, cell, tally, len(self.labels), self.heldout, self.model, fit)
+        heldout = self.episodes.heldout(self.session)
+        row = _row(self.pool, cell, tally, len(self.labels), heldout, self.model, fit)
         cost = {
             "clips": tally.clips,
             "annotator_seconds": annotator_seconds(tally.clips, tally.asked, length),
@@ -192,7 +254,8 @@ class _CellRun:
             "session_clips": list(tally.session_clips),
         }
         seconds = {"seconds": time.perf_counter() - self.started}
-        return {**row, **cost, **seconds, **_crowd_measures(self.labels, tally)}
+        windows = self.episodes.row_fields(self.session)
+        return {**row, **windows, **cost, **seconds, **_crowd_measures(self.labels, tally)}
 
 
 def run_cell(

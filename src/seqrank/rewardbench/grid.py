@@ -16,7 +16,8 @@ from typing import Any
 
 from seqrank.rewardbench.bench import BenchSettings, RewardNet, run_cell
 from seqrank.rewardbench.cells import Cell, row_key
-from seqrank.rewardbench.pool import load_pool
+from seqrank.rewardbench.pool import Pool, load_pool
+from seqrank.rewardbench.windows import checked_windows
 from seqrank.rows import read_rows
 
 Progress = Callable[[int, int], None]  # cells done, cells in all
@@ -35,7 +36,8 @@ def _check_settings(out: Path, settings: BenchSettings) -> None:
     """A folder holds one grid's settings: continuing it with others would mix results."""
     path, record = out / "settings.json", settings_record(settings)
     if path.exists():
-        saved = json.loads(path.read_text())
+        # a setting added since the folder was made stands at its default (the old behaviour)
+        saved = {**settings_record(BenchSettings()), **json.loads(path.read_text())}
         if saved != record:
             changed = sorted(k for k in record if saved.get(k) != record[k])
             raise ValueError(
@@ -143,13 +145,27 @@ def open_grid(pools: list[Path], settings: BenchSettings, out: Path) -> Grid:
     """The grid folder `out` for these pools and settings, made or continued. A ValueError
     names a pool that cannot be used, or a folder of other settings or pools; nothing is
     written until every check has passed."""
-    tasks = {str(p): load_pool(p).task for p in pools}
+    tasks = {}
+    for path in pools:
+        pool = load_pool(path)
+        _check_windows(pool, path, settings)
+        tasks[str(path)] = pool.task
     _check_settings(out, settings)
     pools_record = _checked_pools(out, tasks)
     out.mkdir(parents=True, exist_ok=True)
     (out / "settings.json").write_text(json.dumps(settings_record(settings), indent=2) + "\n")
     (out / "pools.json").write_text(json.dumps(pools_record, indent=2) + "\n")
     return Grid(out, tasks, settings)
+
+
+def _check_windows(pool: Pool, path: Path, settings: BenchSettings) -> None:
+    """Under `window_steps`, a pool with a window for every session and one to score on."""
+    if settings.window_steps is None:
+        return
+    try:
+        checked_windows(pool, settings.window_steps, settings.budgets, settings.session_questions)
+    except ValueError as problem:
+        raise ValueError(f"pool {path}: {problem}") from None
 
 
 def run_grid(
