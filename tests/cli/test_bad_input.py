@@ -13,6 +13,7 @@ from seqrank.cli import main
 from seqrank.episodes import Episode
 from seqrank.rewardbench.pool import pool_from_episodes, save_pool
 from seqrank.training.runs import RunDir
+from support.datasets import write_datasets
 from support.labels import write_labels
 from support.runs import tiny_config
 
@@ -55,6 +56,7 @@ def given(tmp_path: Path) -> dict[str, str]:
     steps = np.zeros((100, 3), np.float32)
     episodes = [Episode(steps, steps[:, :1], np.zeros(100)) for _ in range(4)]
     save_pool(pool_from_episodes("cartpole_swingup", episodes, 0, [], {}), folder / "pool.npz")
+    datasets = write_datasets(folder / "datasets")
     return {
         "file": str(folder / "a-file"),
         "dir": str(folder),
@@ -62,6 +64,7 @@ def given(tmp_path: Path) -> dict[str, str]:
         "runs": str(folder / "runs"),
         "pool": str(folder / "pool.npz"),
         **{name: str(path) for name, path in labels.items()},
+        **datasets,
         **{name: str(folder / f"{name}.toml") for name in sweeps},
     }
 
@@ -70,6 +73,11 @@ TRAIN = ["train", "--device", "cpu", "--task", "dmc:cartpole_swingup"]
 OFFLINE = ["label", "offline", "--task", "dmc:cartpole_swingup", "--port", "0"]
 ONLINE = ["label", "online", "--device", "cpu", "--port", "0", "--out", "online-run"]
 STUDY = ["label", "study", "--participant", "p1", "--device", "cpu", "--port", "0"]
+
+MAKE = ["dataset", "make", "--task", "dmc:cartpole_swingup", "--out", "{dir}/new"]
+DATASET_PAGE = ["label", "offline", "--port", "0", "--dataset"]
+POOL = ["reward-bench", "pool", "--out", "{dir}/pool-new.npz", "--from-dataset"]
+RANDOM_ONE = ["dataset", "make", "--source", "random", "--episodes", "1"]
 
 CASES = [
     # train: ranges of the settings, and what they imply
@@ -310,6 +318,37 @@ CASES = [
     (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "150"], "2 complete windows"),
     (["reward-bench", "score", "x.jsonl", "--pool", "missing.npz"], "pool missing.npz does not"),
     (["reward-bench", "report", "{dir}"], "no rows in {dir}: give a folder that"),
+    # dataset make, info; datasets given to label offline and reward-bench pool
+    (["dataset", "info", "{dir}/nope"], "no Minari dataset at '{dir}/nope': give a dataset id"),
+    (["dataset", "info", "missing-v0"], "no Minari dataset at 'missing-v0'"),
+    (["dataset", "info", "{dataset_foreign}"], "does not name a seqrank task (no seqrank prov"),
+    ([*MAKE, "--source", "expert", "--episodes", "2"], "unknown source 'expert'; accepted: random"),
+    ([*MAKE, "--source", "scripted", "--episodes", "2"], "task dmc:cartpole_swingup has no scrip"),
+    ([*MAKE, "--source", "random=x", "--episodes", "2"], "source 'random=x': share 'x' is not a n"),
+    ([*MAKE, "--source", "random=-1", "--episodes", "2"], "its share must be a number > 0, got -1"),
+    ([*MAKE, "--source", "random"], "--episodes is needed: only a run, as the one source, gives"),
+    ([*MAKE, "--source", "random", "--source", "random", "--episodes", "1"], "gives no episode"),
+    ([*MAKE, "--source", "random", "--episodes", "1", "--noise", "-1"], "--noise must be a numbe"),
+    ([*MAKE, "--source", "run:{run}"], "run {run} has no checkpoint to take episodes from"),
+    ([*MAKE, "--source", "run:{dir}/none"], "source run:{dir}/none: "),
+    (
+        [*RANDOM_ONE[:2], "--task", "walker_walk", "--source", "run:{run}", "--out", "{dir}/new"],
+        "is a run of dmc:cartpole_swingup, not of walker_walk",
+    ),
+    ([*RANDOM_ONE, "--task", "nope", "--out", "{dir}/new"], "unknown task 'nope'"),
+    ([*RANDOM_ONE, "--task", "cartpole_swingup", "--out", "{dataset}"], "dataset {dataset} alre"),
+    ([*DATASET_PAGE, "{dataset}", "--task", "walker_walk"], "is of task dmc:cartpole_swingup, not"),
+    ([*DATASET_PAGE, "{dataset_foreign}"], "does not name a seqrank task"),
+    ([*DATASET_PAGE, "{dataset_foreign}", "--task", "walker_walk"], "observations of size 5 and "),
+    ([*DATASET_PAGE, "{dataset_foreign}", "--task", "dmc:cartpole_swingup"], "no physics states"),
+    ([*DATASET_PAGE, "{dataset}", "--questions", "10"], "needs 11 segments of 50 steps; dataset"),
+    ([*DATASET_PAGE, "{dataset}", "--from", "{run}"], "--dataset gives the episodes to label: le"),
+    ([*DATASET_PAGE, "{dataset}", "--episodes", "3"], "leave out --episodes"),
+    ([*DATASET_PAGE, "missing-v0"], "no Minari dataset at 'missing-v0'"),
+    (["label", "offline", "--port", "0"], "give the episodes to label: --from RUN, --task TASK o"),
+    ([*POOL, "missing-v0"], "no Minari dataset at 'missing-v0'"),
+    ([*POOL, "{dataset}"], "dataset {dataset} has 2 episodes; a pool needs at least 3"),
+    ([*POOL, "{dataset}", "--from-run", "{run}"], "--from-dataset takes a dataset's episodes"),
     # watch, study-report
     (["watch", "{file}"], "no run directory at {file}"),
     (["watch", "{run}"], "{run} has no checkpoint yet"),

@@ -42,6 +42,7 @@ class MakeRequest:
 
 def check_request(request: MakeRequest) -> list[int | None]:
     """Each source's episode count, or a ValueError, before anything is played."""
+    task_label(request.task)  # an unknown task is named before anything else
     if not np.isfinite(request.noise) or request.noise < 0:
         raise ValueError(f"--noise must be a number >= 0, got {request.noise}")
     counts: list[int | None]
