@@ -31,6 +31,8 @@ def test_bench_writes_every_number_for_both_paths(bench):
         assert len(row["update_us_rounds"]) == len(row["loop_steps_per_s_rounds"]) == 2
         for key in ("update_us", "reward_epoch_us", "loop_steps_per_s", "session_s"):
             assert row[key] > 0, key
+        # the loop's cost beside the update: part of a step, never all of it
+        assert 0 < row["collect_us"] < 1e6 / row["loop_steps_per_s"]
         assert row["update_us"] == pytest.approx(sum(row["update_us_rounds"]) / 2, abs=0.1)
         assert row["capture_s"] == 0.0  # no CUDA graph on a CPU
     ref, fast = result["variants"]["reference"], result["variants"]["fast-fp32"]
@@ -42,6 +44,7 @@ def test_bench_writes_every_number_for_both_paths(bench):
     )
     markdown = bench.with_suffix(".md").read_text()
     assert "| SAC update (µs) |" in markdown and "fast-fp32 / reference" in markdown
+    assert "| collection step: action, simulator, store (µs) |" in markdown
     assert "Command: `seqrank bench --task dmc:cartpole_swingup --device cpu" in markdown
     assert "CUDA graph" not in markdown  # captured on CUDA only: no row of zeros on a CPU
 
@@ -59,7 +62,8 @@ def test_the_cpu_benchmark_times_bf16_where_the_processor_has_it(monkeypatch, na
 def test_projection_adds_steps_sessions_and_evaluations():
     config = resolve_config("walker_walk", "paper", {})  # 500K steps, 10 sessions
     rounds = [{"us": 100.0, "capture_s": 1.0}, {"us": 300.0, "capture_s": 2.0}]
-    loops = [{"steps_per_s": 1000.0, "session_s": 2.0, "eval_episode_s": 0.5}] * 3
+    loops = [{"steps_per_s": 1000.0, "collect_us": 9.0, "session_s": 2.0, "eval_episode_s": 0.5}]
+    loops *= 3
     row = summarise({"update": rounds, "reward": [5.0, 7.0], "loop": loops}, config)
     assert row["update_us"] == 200.0 and row["capture_s"] == 2.0 and row["reward_epoch_us"] == 6
     evaluations = 500_000 // 10_000

@@ -25,7 +25,7 @@ from seqrank.agents.critics import Critic, StackedTwinCritic, TwinCritic
 from seqrank.agents.cuda_graph import GraphedCall
 from seqrank.agents.flat_update import FlatSACUpdate
 from seqrank.agents.graph_check import UpdateProbe, check_first_replay
-from seqrank.agents.networks import Actor, squashed_gaussian
+from seqrank.agents.networks import Actor, act_one_numpy, squashed_gaussian
 from seqrank.agents.precision import autocast, matmul_precision
 from seqrank.agents.sac_state import load_sac_state, sac_state
 from seqrank.buffer import Batch, BatchSource
@@ -145,17 +145,17 @@ class SAC:
 
     @torch.no_grad()
     def act(self, obs: Any, deterministic: bool, generator: torch.Generator) -> Any:
-        obs_t = torch.as_tensor(obs, dtype=torch.float32).to(self.device).unsqueeze(0)
         noise = self.noise(1, generator)
         if self.device.type == "cpu":
-            # one observation on a CPU: the actor in its weights' own fp32, in which the
-            # reference path acts too; bf16 pays off only in batches (a step's action took
-            # 396 us in bf16 against 191 us in fp32 on the flat path's machine)
-            sampled, _, mean = squashed_gaussian(self.actor.net(obs_t), noise)
-        else:
-            with matmul_precision(self.execution.precision):
-                sampled, _, mean = self._policy(obs_t, noise)
-        return (mean if deterministic else sampled)[0].cpu().numpy()
+            # one observation on a CPU: the actor in its weights' own fp32 and in numpy,
+            # on every path; bf16 pays off only in batches (a step's action took 396 us in
+            # bf16 against 191 us in torch's fp32 on the flat path's machine)
+            drawn, mean = act_one_numpy(self.actor.net, obs, noise[0].numpy())
+            return mean if deterministic else drawn
+        obs_t = torch.as_tensor(obs, dtype=torch.float32).to(self.device).unsqueeze(0)
+        with matmul_precision(self.execution.precision):
+            sampled, _, mean_t = self._policy(obs_t, noise)
+        return (mean_t if deterministic else sampled)[0].cpu().numpy()
 
     def update(self, batch: Batch, generator: torch.Generator) -> None:
         """One update from a given batch: critic, actor and temperature, and every

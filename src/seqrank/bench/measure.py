@@ -117,7 +117,9 @@ def reward_epoch_microseconds(
 def loop_rates(
     config: TrainConfig, device: torch.device, fast: bool, precision: str, steps: int
 ) -> dict[str, float]:
-    """The full training loop: steps per second after the first feedback session, and the
+    """The full training loop: steps per second after the first feedback session, the
+    mean microseconds of its collection step (the action, the simulator's step and the
+    transition stored with its learned reward: the loop's cost beside the update), and the
     seconds training waits for that session and for one evaluation episode (the fast path
     evaluates in another process: only the hand-over counts)."""
     dims = _Dims(config.task)
@@ -149,16 +151,34 @@ def loop_rates(
             marks.setdefault(step, time.perf_counter())
 
         trainer.progress = mark
+        collecting = _timed_collection(trainer)
         trainer.train()
     start = first + 100  # after the session and its updates_after_reset updates
     end = first + steps - 100  # before the final evaluation
     if end <= start or start not in marks or end not in marks:
         raise ValueError(f"--loop-steps {steps} is too short: it needs at least 300")
+    window = [seconds for step, seconds in collecting.items() if start < step <= end]
     return {
         "steps_per_s": (end - start) / (marks[end] - marks[start]),
+        "collect_us": 1e6 * sum(window) / len(window),
         "session_s": durations["feedback_session"],
         "eval_episode_s": durations["evaluation"],
     }
+
+
+def _timed_collection(trainer: Trainer) -> dict[int, float]:
+    """Seconds of each collection step, by the step count it ended at."""
+    seconds: dict[int, float] = {}
+    collector, step = trainer.collector, trainer.collector.step
+
+    def timed(*args: Any) -> bool:
+        started = time.perf_counter()
+        episode_over = step(*args)
+        seconds[trainer.counters.step] = time.perf_counter() - started
+        return episode_over
+
+    collector.step = timed  # type: ignore[method-assign]
+    return seconds
 
 
 def _phase_timer(

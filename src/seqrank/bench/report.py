@@ -8,6 +8,7 @@ ROWS = (
     ("SAC update (µs)", "update_us", "update", "{:.0f}"),
     ("reward-model epoch (µs)", "reward_epoch_us", "reward_epoch", "{:.0f}"),
     ("loop (env steps/s)", "loop_steps_per_s", "loop", "{:.1f}"),
+    ("collection step: action, simulator, store (µs)", "collect_us", None, "{:.0f}"),
     ("projected full run (min)", "projected_full_run_s", "projected_full_run", "{:.1f}"),
     ("feedback session (s)", "session_s", None, "{:.2f}"),
     ("evaluation, time training waits (s)", "eval_episode_s", None, "{:.2f}"),

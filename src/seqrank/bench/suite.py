@@ -115,6 +115,7 @@ def summarise(samples: dict[str, list[Any]], config: TrainConfig) -> dict[str, A
         "reward_epoch_us": median(samples["reward"]),
         "loop_steps_per_s": median(s["steps_per_s"] for s in loop),
         "loop_steps_per_s_rounds": [round(s["steps_per_s"], 1) for s in loop],
+        "collect_us": median(s["collect_us"] for s in loop),
         "session_s": median(s["session_s"] for s in loop),
         "eval_episode_s": median(s["eval_episode_s"] for s in loop),
     }

@@ -17,6 +17,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+LEAKY_SLOPE = 0.01  # torch's default negative slope
+
 
 class EnsembleMLP(nn.Module):
     """`members` independent MLPs: LeakyReLU hidden layers, tanh scalar output."""
@@ -30,6 +32,8 @@ class EnsembleMLP(nn.Module):
             bound = 1 / math.sqrt(a)  # the default nn.Linear initialisation, per member
             self.weights.append(nn.Parameter(torch.empty(members, a, b).uniform_(-bound, bound)))
             self.biases.append(nn.Parameter(torch.empty(members, 1, b).uniform_(-bound, bound)))
+        # the same parameters as a plain tuple: a ParameterList's indexing costs microseconds
+        self._layers = tuple(zip(self.weights, self.biases, strict=True))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """x: (members, N, inputs) or (N, inputs) shared by all; returns (members, N, 1)."""
@@ -38,8 +42,18 @@ class EnsembleMLP(nn.Module):
         last = len(self.weights) - 1
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = torch.baddbmm(b, x, w)
-            x = torch.tanh(x) if i == last else F.leaky_relu(x)
+            x = torch.tanh(x) if i == last else F.leaky_relu(x, LEAKY_SLOPE)
         return x
+
+    def one_row_numpy(self, features: np.ndarray) -> float:
+        """The members' mean output for one row of features, in numpy on the host (fp32
+        weights read through views of the current parameters: nothing goes stale)."""
+        x = features[None, None]
+        last = len(self._layers) - 1
+        for i, (w, b) in enumerate(self._layers):
+            x = np.matmul(x, w.detach().numpy()) + b.detach().numpy()
+            x = np.tanh(x) if i == last else np.maximum(x, LEAKY_SLOPE * x)
+        return float(x.mean())
 
 
 @dataclass(frozen=True)
@@ -148,12 +162,12 @@ class RewardModel:
 
     def reward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         """The agent's reward: the ensemble mean, shape (N, 1)."""
+        if len(obs) == 1 and self.device.type == "cpu" and not torch.is_grad_enabled():
+            # a step's reward as the loop stores it: in numpy, where torch's cost per call
+            # is most of the time at one row
+            features = torch.cat([obs[0], action[0]]).numpy()
+            return torch.tensor([[self.net.one_row_numpy(features)]])
         return self.net(torch.cat([obs, action], dim=-1)).mean(0)
-
-    @torch.no_grad()
-    def reward_numpy(self, obs: np.ndarray, action: np.ndarray) -> float:
-        features = torch.as_tensor(np.concatenate([obs, action]), device=self.device)
-        return float(self.net(features[None]).mean())
 
     def step_rewards(self, segments: torch.Tensor) -> torch.Tensor:
         """segments: (N, H, D) shared, or (members, N, H, D); returns (members, N, H)."""
