@@ -177,7 +177,7 @@ def _timed_collection(trainer: Trainer) -> dict[int, float]:
         seconds[trainer.counters.step] = time.perf_counter() - started
         return episode_over
 
-    collector.step = timed  # type: ignore[method-assign]
+    collector.step = timed  # type: ignore[method-assign,assignment]
     return seconds
 
 
