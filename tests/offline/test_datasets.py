@@ -65,13 +65,17 @@ def test_a_made_dataset_reads_back_the_episodes_its_environment_plays(tmp_path, 
     assert info["provenance"]["command"].startswith("seqrank dataset make --task")
 
 
-def test_the_same_seed_makes_the_same_dataset_and_another_seed_another(tmp_path, capsys):
-    for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
+def test_the_same_seed_makes_the_same_dataset_and_another_seed_another(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)  # relative paths too (Minari's storage needs them absolute)
+    for name, seed in (("./a", "1"), ("b", "1"), ("c", "2")):
         make(capsys, "--task", CARTPOLE, "--source", "random", "--episodes", "1", "--seed", seed,
-             "--out", str(tmp_path / name))  # fmt: skip
-    a, b, c = (load_dataset(tmp_path / name) for name in "abc")
+             "--out", name)  # fmt: skip
+    a, b, c = (load_dataset(name) for name in ("a", "./b", str(tmp_path / "c")))
     np.testing.assert_array_equal(a.actions, b.actions)
     assert not np.array_equal(a.actions, c.actions)
+    assert a.meta["path"] == str(tmp_path / "a")
 
 
 def test_a_dataset_named_by_id_lives_in_minaris_local_folder(capsys):

@@ -62,7 +62,7 @@ def locate(name_or_path: str | Path) -> Location:
     text = str(name_or_path)
     if isinstance(name_or_path, str) and is_dataset_id(text):
         return Location(datasets_root() / text, text)
-    folder = Path(text).expanduser()
+    folder = Path(text).expanduser().absolute()  # Minari's HDF5 storage mangles relative paths
     if folder.name == "data" and (folder / "metadata.json").is_file():
         folder = folder.parent  # the data folder itself was named
     return Location(folder, _id_for_path(folder))
