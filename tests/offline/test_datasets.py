@@ -167,7 +167,7 @@ def _foreign(folder: Path, obs_dim: int, env_id: str | None = None) -> Path:
     return folder
 
 
-def test_a_foreign_minari_dataset_loads_with_its_task_named_or_found(tmp_path):
+def test_a_foreign_minari_dataset_loads_with_its_task_named_or_found(tmp_path, capsys):
     import seqrank  # noqa: F401  (registers the seqrank/ ids)
 
     unnamed = _foreign(tmp_path / "unnamed", 5)
@@ -176,6 +176,9 @@ def test_a_foreign_minari_dataset_loads_with_its_task_named_or_found(tmp_path):
     dataset = load_dataset(unnamed, task="cartpole_swingup")
     assert dataset.task == CARTPOLE and len(dataset) == 10 and dataset.terminations[-1]
     assert dataset.meta["foreign"] is True
+    assert main(["dataset", "info", str(unnamed), "--task", "cartpole_swingup", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["task"], info["transitions"], info["provenance"]) == (CARTPOLE, 10, None)
     with pytest.raises(ValueError, match="observations of size 5 and actions of size 1; task"):
         load_dataset(unnamed, task="walker_walk")
     found = _foreign(tmp_path / "found", 5, "seqrank/cartpole_swingup-v0")

@@ -33,6 +33,9 @@ def add_parser(commands: Any) -> None:
     _add_make(actions)
     info = actions.add_parser("info", help="episodes, returns, success rate and provenance")
     info.add_argument("dataset", help=NAME_HELP)
+    info.add_argument(
+        "--task", help="the task of a dataset that does not name one (one made elsewhere)"
+    )
     info.add_argument("--json", action="store_true", help="print the description as JSON")
     info.set_defaults(handler=run_info)
 
@@ -89,7 +92,7 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
 
 
 def run_info(args: argparse.Namespace, out: Console, err: Console) -> int:
-    info = _describe(args.dataset)
+    info = _describe(args.dataset, args.task)
     if args.json:
         out.print_json(json.dumps(info))
     else:
@@ -97,11 +100,11 @@ def run_info(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
-def _describe(name: str) -> dict[str, Any]:
+def _describe(name: str, task: str | None = None) -> dict[str, Any]:
     from seqrank.offline.make import describe
 
     try:
-        return describe(name)
+        return describe(name, task)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
 

@@ -127,10 +127,11 @@ def _provenance(
     }
 
 
-def describe(name_or_path: str | Path) -> dict[str, Any]:
-    """What `dataset info` shows: sizes, returns, success rate where recorded, provenance."""
+def describe(name_or_path: str | Path, task: str | None = None) -> dict[str, Any]:
+    """What `dataset info` shows: sizes, returns, success rate where recorded, provenance
+    (`task`: of a dataset that does not name one, as `load_dataset` takes it)."""
     location, metadata = read_metadata(name_or_path)
-    dataset = load_dataset(name_or_path)
+    dataset = load_dataset(name_or_path, task)
     returns = dataset.episode_returns()
     lengths = np.diff(np.append(dataset.starts, len(dataset)))
     successes = episode_successes(name_or_path)
