@@ -8,6 +8,7 @@ The public Python API (documented on the site's Reference, Python API page, docs
   `Answer`, `SCHEMES`;
 - training: `make_config`, `train`, `TrainConfig`, `JudgeSource`, `Segment`,
   `FeedbackSource` (the protocol a custom source implements), `SessionRequest`;
+  `offline_train` (IQL on a fixed dataset);
 - looking: `load_run`, `Run`, `make_env`.
 
 Two of the names are values:
@@ -43,6 +44,7 @@ _PUBLIC = {
     "close_preferences": "seqrank.api",
     "make_config": "seqrank.api",
     "train": "seqrank.api",
+    "offline_train": "seqrank.api",
     "load_run": "seqrank.api",
     "Run": "seqrank.api",
     "JudgeSource": "seqrank.api",

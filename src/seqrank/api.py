@@ -5,6 +5,7 @@
 - Train: `make_config` resolves a run's settings like `seqrank train`, `train` runs it,
   optionally with your own feedback source (`JudgeSource` wraps a plain function that
   compares two segments).
+- Offline: `offline_train` learns a policy from a fixed dataset (IQL).
 - Look: `load_run` reads a run directory (settings, metrics, summary) and its policy.
 """
 
@@ -277,6 +278,49 @@ def train(
             return started.run.read_summary()
         summary: dict[str, Any] = started.trainer.train()
         return summary
+    finally:
+        started.run.release()
+
+
+def offline_train(
+    dataset: str | Path, out: Path | str, reward: str = "true", **settings: Any
+) -> dict[str, Any]:
+    """Train IQL on a fixed dataset into the directory `out`, as `seqrank offline train`
+    does, and return its summary.
+
+    A new `out` starts the run; one holding a stopped run of the same settings continues
+    it (a finished one is returned as it is; other settings are refused, naming them).
+
+    Args:
+        dataset: a Minari dataset id in Minari's local folder, or a dataset folder's path
+            (`seqrank dataset make` writes one).
+        out: the run directory: config.json, metrics.jsonl, checkpoint.pt, summary.json.
+        reward: "true" (the dataset's reward) or "learned" (`max_feedback` questions of
+            `scheme` answered by `teacher`, a reward model fit to them, labels.jsonl).
+        **settings: the options of `seqrank offline train` with _ for - (`steps`,
+            `eval_every`, `eval_episodes`, `seed`, `scheme`, `teacher`, `max_feedback`,
+            `hidden`, `expectile`, `temperature`, ...); a ValueError names a bad one.
+
+    Returns:
+        The summary (summary.json): final and best evaluation return and success rate,
+            `eval_curve`, the dataset's mean episode return, the reward scaling, wall time.
+
+    Examples:
+        >>> import seqrank
+        >>> seqrank.offline_train("no-such-dataset", "run", steps=100)
+        Traceback (most recent call last):
+        ValueError: no Minari dataset at 'no-such-dataset': ...
+        >>> summary = seqrank.offline_train("door-open-v0", "run", steps=1000)  # doctest: +SKIP
+    """
+    from seqrank.offline.launch import open_or_start
+    from seqrank.offline.settings import OfflineConfig
+
+    config = OfflineConfig.from_dict({"dataset": str(dataset), "reward": reward, **settings})
+    started = open_or_start(Path(out), config)
+    try:
+        if started.trainer is None:
+            return started.run.read_summary()
+        return started.trainer.train()
     finally:
         started.run.release()
 

@@ -1,5 +1,5 @@
 """The `seqrank` command line: train, theory, simulate, label, labels, study-report, sweep,
-report, bench, reward-bench, dataset, watch."""
+report, bench, reward-bench, dataset, offline, watch."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import seqrank.cli.bench as bench
 import seqrank.cli.dataset as dataset
 import seqrank.cli.label as label
 import seqrank.cli.labels as labels
+import seqrank.cli.offline as offline
 import seqrank.cli.report as report
 import seqrank.cli.reward_bench as reward_bench
 import seqrank.cli.simulate as simulate
@@ -38,6 +39,7 @@ SUBCOMMANDS = (
     bench,
     reward_bench,
     dataset,
+    offline,
     watch,
 )
 

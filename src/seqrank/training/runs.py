@@ -1,6 +1,6 @@
 """A self-describing run directory.
 
-config.json      the full resolved TrainConfig
+config.json      the full resolved TrainConfig (an offline run's: its OfflineConfig)
 meta.json        seed, device, package versions, git revision, command, start time
 metrics.jsonl    one JSON object per line, each with `step` and `kind`
                  (`eval`, `feedback`, `train`); keys in docs/reference/metrics.md
@@ -21,13 +21,24 @@ import time
 from dataclasses import fields
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import torch
 
 from seqrank.config import TrainConfig
 from seqrank.dirs import LOCK_NAME, DirLock, check_folder, missing_folders, remove_made
 from seqrank.training.sinks import MetricSink, TensorBoardSink, WandbSink
+
+
+class RunSettings(Protocol):
+    """What a run directory records of a run's settings: an online run's `TrainConfig`,
+    an offline run's `offline.settings.OfflineConfig`."""
+
+    @property
+    def seed(self) -> int: ...
+
+    def as_dict(self) -> dict[str, Any]: ...
+
 
 PACKAGES = ("seqrank", "torch", "numpy", "mujoco", "dm-control", "metaworld", "gymnasium")
 
@@ -59,7 +70,7 @@ class RunDir:
 
     @classmethod
     def create(
-        cls, path: Path, config: TrainConfig, device: str, wandb: str | None = None
+        cls, path: Path, config: RunSettings, device: str, wandb: str | None = None
     ) -> RunDir:
         """A new run directory, locked by this process; `wandb` names a W&B project that
         also gets the metrics (kept in meta.json, so a resumed run logs there too)."""
@@ -196,7 +207,7 @@ def _write_json(path: Path, value: Any) -> None:
     path.write_text(json.dumps(value, indent=2) + "\n")
 
 
-def _meta(config: TrainConfig, device: str) -> dict[str, Any]:
+def _meta(config: RunSettings, device: str) -> dict[str, Any]:
     versions: dict[str, str | None] = {}
     for name in PACKAGES:
         try:

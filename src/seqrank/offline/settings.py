@@ -1,0 +1,156 @@
+"""An offline run's settings: `seqrank offline train`'s options, its `config.json` and the
+Python API's keywords at once.
+
+The learner's defaults are IQL's published MuJoCo hyperparameters (Kostrikov et al. 2022,
+`configs/mujoco_config.py` of the authors' code): expectile 0.7, temperature 3.0, discount
+0.99, learning rates 3e-4, batch 256, two hidden layers of 256, 1M updates, target rate
+0.005, the actor's rate on a cosine schedule. LiRE (Choi et al. 2024, `configs/iql.yaml`)
+runs IQL on Meta-World with the same values, 250k updates and 50 evaluation episodes
+every 5 000; its reward scaling is `reward_scale` "unit" (`offline.rewards`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from enum import StrEnum
+from typing import TYPE_CHECKING, Any
+
+from seqrank.errors import SettingError, setting
+
+if TYPE_CHECKING:
+    from seqrank.agents.iql import IQLSettings
+
+
+class OfflineReward(StrEnum):
+    TRUE = "true"  # the dataset's own reward: the ceiling a learned reward is held to
+    LEARNED = "learned"  # labels over the dataset's segments, a reward model, relabelled
+
+
+class RewardScale(StrEnum):
+    """How the rewards IQL trains on are scaled (`offline.rewards.scale_rewards`)."""
+
+    AUTO = "auto"  # unit on Meta-World (LiRE), returns elsewhere (IQL's locomotion)
+    RETURNS = "returns"  # x 1000 / (max episode return - min episode return): IQL, MuJoCo
+    UNIT = "unit"  # per-step min-max onto [0, 1]: LiRE, Meta-World
+    NONE = "none"
+
+
+@dataclass(frozen=True)
+class OfflineConfig:
+    dataset: str  # a Minari dataset id or a dataset folder (`offline.minari_io.locate`)
+    task: str | None = None  # the task the dataset must be of; None: the one it records
+    reward: str = "true"  # OfflineReward
+    scheme: str = "sequential"  # learned: the comparison scheme asked over the segments
+    teacher: str = "oracle"  # learned: who answers (`seqrank train --teacher`'s values)
+    max_feedback: int = 500  # learned: the questions asked in all
+    segment_length: int = 50  # learned: steps a segment (`offline.labelling`'s default)
+    session_questions: int = 25  # learned: questions a session
+    steps: int = 1_000_000  # IQL updates
+    eval_every: int = 5_000  # updates between evaluations (each one checkpoints)
+    eval_episodes: int = 10
+    seed: int = 0
+    batch: int = 256
+    hidden: int = 256
+    layers: int = 2
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    value_lr: float = 3e-4
+    discount: float = 0.99
+    expectile: float = 0.7
+    temperature: float = 3.0
+    target_rate: float = 0.005
+    reward_scale: str = "auto"  # RewardScale
+    normalize_observations: bool = True  # by the dataset's mean and std (LiRE's IQL)
+    device: str = "auto"
+    log_every: int = 1_000  # updates between `train` rows
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> OfflineConfig:
+        """Settings read back from a `config.json` (keys it does not know are refused)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise SettingError(
+                f"unknown setting {setting(unknown[0])}; an offline run's settings are "
+                f"{', '.join(sorted(known))}"
+            )
+        return cls(**values)
+
+    def iql(self) -> IQLSettings:
+        from seqrank.agents.iql import IQLSettings  # torch: not for `seqrank --help`
+
+        return IQLSettings(
+            hidden=self.hidden,
+            layers=self.layers,
+            actor_lr=self.actor_lr,
+            critic_lr=self.critic_lr,
+            value_lr=self.value_lr,
+            discount=self.discount,
+            expectile=self.expectile,
+            temperature=self.temperature,
+            target_rate=self.target_rate,
+            decay_steps=self.steps,  # the actor's rate reaches 0 at the run's last update
+        )
+
+
+# the least value of each whole-number setting
+_WHOLE = {
+    "max_feedback": 1,
+    "segment_length": 1,
+    "session_questions": 1,
+    "steps": 1,
+    "eval_every": 1,
+    "eval_episodes": 1,
+    "batch": 1,
+    "hidden": 1,
+    "layers": 1,
+    "log_every": 1,
+}
+_RATES = ("actor_lr", "critic_lr", "value_lr", "target_rate")  # in (0, 1]
+
+
+def validate(config: OfflineConfig) -> OfflineConfig:
+    """The config, or a SettingError naming the first setting out of range."""
+    from seqrank.feedback.schemes import SchemeName
+    from seqrank.feedback.teachers import parse_teacher
+
+    if not str(config.dataset).strip():
+        raise SettingError(f"{setting('dataset')} must name a dataset")
+    _choice(OfflineReward, config.reward, "reward")
+    _choice(RewardScale, config.reward_scale, "reward_scale")
+    _choice(SchemeName, config.scheme, "scheme")
+    parse_teacher(config.teacher)
+    if not 0 <= config.seed < 2**32:
+        raise SettingError(f"{setting('seed')} must lie in 0 to 2**32 - 1, got {config.seed}")
+    for name, lowest in _WHOLE.items():
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
+            raise SettingError(f"{setting(name)} must be a whole number >= {lowest}, got {value!r}")
+    for name in _RATES:
+        _number(config, name, lambda v: 0 < v <= 1, "in (0, 1]")
+    _number(config, "expectile", lambda v: 0 < v < 1, "strictly between 0 and 1")
+    _number(config, "discount", lambda v: 0 <= v <= 1, "in [0, 1]")
+    _number(config, "temperature", lambda v: v >= 0, ">= 0 (0 is behaviour cloning)")
+    if config.device not in ("auto", "cpu", "cuda"):
+        raise SettingError(
+            f"unknown {setting('device')} {config.device!r}; accepted: auto, cpu, cuda"
+        )
+    return config
+
+
+def _choice(kind: type[StrEnum], value: object, name: str) -> None:
+    accepted = [member.value for member in kind]
+    if value not in accepted:
+        raise SettingError(f"unknown {setting(name)} {value!r}; accepted: {', '.join(accepted)}")
+
+
+def _number(config: OfflineConfig, name: str, fits: Any, what: str) -> None:
+    value = getattr(config, name)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise SettingError(f"{setting(name)} must be a number {what}, got {value!r}")
+    if not fits(value):
+        raise SettingError(f"{setting(name)} must be {what}, got {value}")

@@ -1,0 +1,160 @@
+"""`seqrank offline train` at test sizes: a run from a small dataset made here, its rows and
+summary, a stopped run resumed to the same numbers as an uninterrupted one, the learned
+reward end to end, and bad input refused in one line with nothing left behind."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import torch
+
+import seqrank
+from seqrank.cli import main
+from seqrank.offline.launch import start_new
+from seqrank.offline.settings import OfflineConfig
+from seqrank.training.loop import RunStopped
+from support.offline import LINE, write_dataset
+
+TINY = {"steps": 60, "eval_every": 30, "eval_episodes": 2, "hidden": 16, "batch": 32,
+        "log_every": 20, "device": "cpu"}  # fmt: skip
+TIMING = ("wall_seconds", "updates_per_second")  # differ between two runs of one machine
+
+
+def flags(settings: dict[str, object]) -> list[str]:
+    return [part for k, v in settings.items() for part in (f"--{k.replace('_', '-')}", str(v))]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_dataset(tmp_path_factory.mktemp("data") / "line", episodes=20, seed=0)
+
+
+def rows(run: Path) -> list[dict[str, object]]:
+    lines = (run / "metrics.jsonl").read_text().splitlines()
+    return [{k: v for k, v in json.loads(line).items() if k not in TIMING} for line in lines]
+
+
+def test_a_run_trains_evaluates_and_writes_its_rows_and_summary(dataset, tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["offline", "train", "--dataset", str(dataset), "--out", str(out), "--quiet",
+                 *flags(TINY)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "IQL on its true reward, 60 updates" in capsys.readouterr().out
+    kinds = [(row["step"], row["kind"]) for row in rows(out)]
+    assert kinds == [(20, "train"), (30, "eval"), (40, "train"), (60, "train"), (60, "eval")]
+    train = rows(out)[0]
+    assert {"value_loss", "actor_loss", "critic_loss", "weight_mean", "actor_lr"} <= set(train)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["task"] == LINE and summary["reward"] == "true" and summary["steps"] == 60
+    assert [step for step, _ in summary["eval_curve"]] == [30, 60]
+    assert summary["reward_scale"] == "returns" and summary["dataset_episodes"] == 20
+    assert json.loads((out / "config.json").read_text())["dataset"] == str(dataset)
+    assert (out / "checkpoint.pt").is_file()
+
+
+class StopAt:
+    """A stop request that arrives once the trainer has made `step` updates."""
+
+    def __init__(self, step: int):
+        self.step, self.trainer = step, None
+
+    def is_set(self) -> bool:
+        return self.trainer.counters.step >= self.step
+
+
+def test_a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one(dataset, tmp_path):
+    whole = tmp_path / "whole"
+    seqrank.offline_train(dataset, whole, **TINY)
+
+    parted = tmp_path / "parted"
+    started = start_new(parted, OfflineConfig(str(dataset), **TINY))
+    stop = StopAt(45)  # between evaluations: the checkpoint is the stop's own
+    stop.trainer = started.trainer
+    started.trainer.stop_requested = stop
+    with pytest.raises(RunStopped):
+        started.trainer.train()
+    started.run.release()
+    assert not (parted / "summary.json").exists()
+    assert main(["offline", "train", "--resume", str(parted), "--quiet"]) == 0
+
+    assert rows(parted) == rows(whole)
+    first, second = (json.loads((d / "summary.json").read_text()) for d in (whole, parted))
+    assert first["eval_curve"] == second["eval_curve"]
+    actors = [torch.load(d / "checkpoint.pt", weights_only=False)["agent"]["actor"]
+              for d in (whole, parted)]  # fmt: skip
+    assert all(torch.equal(actors[0][k], actors[1][k]) for k in actors[0])
+
+
+def test_a_finished_run_is_not_trained_again_and_resume_takes_no_settings(
+    dataset, tmp_path, capsys
+):
+    out = tmp_path / "run"
+    summary = seqrank.offline_train(dataset, out, **TINY)
+    assert seqrank.offline_train(dataset, out, **TINY) == summary  # same settings: returned
+    assert main(["offline", "train", "--resume", str(out)]) == 0
+    assert "is finished" in capsys.readouterr().err
+    assert main(["offline", "train", "--resume", str(out), "--steps", "90"]) == 2
+    assert "drop --steps" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="other settings"):
+        seqrank.offline_train(dataset, out, **{**TINY, "steps": 90})
+
+
+def test_a_learned_reward_labels_the_dataset_fits_and_trains_on_it(dataset, tmp_path, capsys):
+    out = tmp_path / "run"
+    learned = {"reward": "learned", "scheme": "root", "teacher": "oracle", "max_feedback": 20,
+               "segment_length": 10, "session_questions": 10}  # fmt: skip
+    code = main(["offline", "train", "--dataset", str(dataset), "--out", str(out), "--quiet",
+                 *flags(learned), *flags(TINY)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    feedback = [row for row in rows(out) if row["kind"] == "feedback"]
+    assert len(feedback) == 1 and feedback[0]["step"] == 0 and feedback[0]["questions"] == 20
+    assert feedback[0]["total_pairs"] > 20  # root's closure infers pairs beyond those asked
+    assert (out / "labels.jsonl").is_file() and (out / "learned_rewards.npy").is_file()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reward"] == "learned" and summary["scheme"] == "root"
+
+
+BUDGET = {"reward": "learned", "scheme": "pairwise", "max_feedback": 5000}  # 20 segments there
+BAD = {  # case -> (options, text the one line must hold); "DATA": the test's dataset
+    "missing dataset": ({"dataset": "nothing"}, "no Minari dataset at"),
+    "another task": ({"dataset": "DATA", "task": "dmc:cartpole_swingup"}, "is of task"),
+    "sizes": ({"dataset": "wide"}, "observations of size 3"),
+    "budget": ({"dataset": "DATA", **BUDGET}, "a budget of 5000 pairwise questions needs"),
+    "setting": ({"dataset": "DATA", "expectile": 1.5}, "--expectile must be"),
+    "no dataset": ({}, "--dataset is needed"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_input_is_one_line_and_leaves_nothing_behind(case, dataset, tmp_path, capsys):
+    options, text = BAD[case]
+    if options.get("dataset") == "wide":  # rows wider than the task's observations
+        options = {"dataset": write_dataset(tmp_path / "wide", 3, extra_obs=1)}
+    elif options.get("dataset") in ("DATA", "nothing"):
+        named = dataset if options["dataset"] == "DATA" else tmp_path / "nothing"
+        options = {**options, "dataset": named}
+    out = tmp_path / "runs" / "run"
+    code = main(["offline", "train", "--out", str(out), *flags(options), *flags(TINY)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert text in err and err.startswith("seqrank offline: error:"), err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_dataset_that_changed_since_the_run_began_is_refused_on_resume(tmp_path, capsys):
+    data = write_dataset(tmp_path / "line", episodes=5, seed=0)
+    out = tmp_path / "run"
+    started = start_new(out, OfflineConfig(str(data), **TINY))
+    stop = StopAt(40)
+    stop.trainer = started.trainer
+    started.trainer.stop_requested = stop
+    with pytest.raises(RunStopped):
+        started.trainer.train()
+    started.run.release()
+    shutil.rmtree(data)
+    write_dataset(data, episodes=5, seed=1)
+    assert main(["offline", "train", "--resume", str(out), "--quiet"]) == 2
+    assert "changed since" in capsys.readouterr().err
