@@ -10,10 +10,10 @@ import pytest
 import torch
 from test_sac_paths import ACT, CPU, OBS, ROWS, SETTINGS, random_batch
 
-from seqrank.agents.critics import StackedTwinCritic
-from seqrank.agents.flat_update import Layer, backward, forward, head_backward, min_gradient
-from seqrank.agents.networks import Actor, squashed_gaussian
 from seqrank.agents.sac import SAC, Execution
+from seqrank.agents.sac.critics import StackedTwinCritic
+from seqrank.agents.sac.flat_backward import Layer, backward, forward, head_backward, min_gradient
+from seqrank.agents.sac.networks import Actor, squashed_gaussian
 
 FLAT = Execution(stacked_critics=True, fused_adam=True, flat=True)
 
@@ -187,3 +187,56 @@ def test_on_a_cpu_every_path_acts_with_the_fp32_actor(precision):
             for agent in (reference, flat)
         ]
         assert (actions[0] == actions[1]).all()
+
+
+def _unhook_actor_data(agent: SAC) -> None:
+    first = agent.actor.net[0]
+    first.weight.data = first.weight.data.clone()
+
+
+def _replace_a_critic_parameter(agent: SAC) -> None:
+    critic = agent.critic
+    assert isinstance(critic, StackedTwinCritic)
+    critic.weights[0] = torch.nn.Parameter(critic.weights[0].detach().clone())
+
+
+def _unhook_target_data(agent: SAC) -> None:
+    target = agent.critic_target
+    assert isinstance(target, StackedTwinCritic)
+    target.biases[-1].data = target.biases[-1].data.clone()
+
+
+def _move_the_actor_to_float64(agent: SAC) -> None:
+    agent.actor.double()
+
+
+UNHOOKINGS = [
+    _unhook_actor_data,
+    _replace_a_critic_parameter,
+    _unhook_target_data,
+    _move_the_actor_to_float64,
+]
+
+
+@pytest.mark.parametrize("unhook", UNHOOKINGS, ids=lambda f: f.__name__.strip("_"))
+@pytest.mark.parametrize("then", ["load_state_dict", "reset_critic"])
+def test_a_parameter_that_no_longer_views_its_flat_buffer_is_refused(unhook, then):
+    """The flat update steps its buffers; a parameter given other storage would leave its
+    module with stale weights while training went on: the next load or reset says so."""
+    _, flat = _same_start(FLAT)
+    state = flat.state_dict()
+    unhook(flat)
+    with pytest.raises(RuntimeError, match="no longer views it|now has"):
+        flat.load_state_dict(state) if then == "load_state_dict" else flat.reset_critic()
+
+
+def test_loads_and_resets_keep_the_parameters_viewing_the_flat_buffers():
+    """What every loader does (copies in place) passes the check, and the module then
+    shows the flat update's steps."""
+    autograd, flat = _same_start(FLAT)
+    flat.reset_critic()
+    flat.load_state_dict(autograd.state_dict())
+    before = flat.actor.net[0].weight.detach().clone()
+    flat.update(random_batch(torch.Generator().manual_seed(6)), torch.Generator())
+    assert not torch.equal(flat.actor.net[0].weight, before)
+    assert all(p.grad is None for p in flat.actor.parameters())  # gradients live flat

@@ -10,12 +10,22 @@ import copy
 import numpy as np
 import torch
 
-from seqrank.agents import sac as sac_module
 from seqrank.agents.sac import SAC, Execution, SACSettings
+from seqrank.agents.sac import agent as sac_module
 from seqrank.buffer import ReplayBuffer
 
 CPU = torch.device("cpu")
-SETTINGS = SACSettings(64, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+SETTINGS = SACSettings(
+    hidden=64,
+    layers=2,
+    actor_lr=5e-4,
+    critic_lr=5e-4,
+    alpha_lr=1e-4,
+    init_temperature=0.1,
+    discount=0.99,
+    tau=0.005,
+    target_update_every=2,
+)
 OBS, ACT, ROWS = 7, 3, 48
 GRAPHS = Execution(stacked_critics=True, fused_adam=True, graphs=True)
 

@@ -104,7 +104,17 @@ class Recording(HybridReplay):
 @pytest.mark.parametrize("path", ["reference", "fast"])
 def test_sac_updates_from_hybrid_batches_in_both_paths(path):
     """On a CPU the fast path samples on the host too (graphs are CUDA only)."""
-    settings = SACSettings(16, 2, 1e-3, 1e-3, 1e-3, 0.1, 0.99, 0.005, 2)
+    settings = SACSettings(
+        hidden=16,
+        layers=2,
+        actor_lr=1e-3,
+        critic_lr=1e-3,
+        alpha_lr=1e-3,
+        init_temperature=0.1,
+        discount=0.99,
+        tau=0.005,
+        target_update_every=2,
+    )
     cpu = torch.device("cpu")
     execution = Execution() if path == "reference" else Execution.fast(cpu, "fp32")
     agent = SAC(OBS, ACT, settings, cpu, execution)

@@ -8,8 +8,8 @@ import pytest
 import torch
 from test_sac_paths import ACT, CPU, OBS, SETTINGS
 
-from seqrank.agents.networks import squashed_gaussian
 from seqrank.agents.sac import SAC
+from seqrank.agents.sac.networks import squashed_gaussian
 from seqrank.buffer import ReplayBuffer
 from seqrank.reward.model import RewardModel
 

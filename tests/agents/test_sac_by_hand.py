@@ -4,8 +4,15 @@ The networks are made constant (last layers' weights zero), so every quantity of
 update has a closed form: the critics output their biases, the actor's head outputs its
 bias (the mean and the raw log-std), and the soft target value of SPEC section 1 is
     y = r + gamma * not_done * (min(Q1', Q2') - alpha * log pi(a'|s')).
-Both ways of running the update (reference and fast) share `_target_value`, so comparing
-them cannot see a term dropped from it; this can.
+The reference and the fast autograd update share `_target_value`, so comparing them cannot
+see a term dropped from it; this can. Each test runs on the three updates: the reference,
+the fast path's autograd update (stacked critics, fused Adam: CUDA's, here on a CPU) and
+the flat update (the fast path on a CPU, its backward written by hand), so a slip in either
+of the flat update's own formulas is caught here too.
+
+Adam's first step moves each weight by exactly lr against the sign of its gradient
+(m / sqrt(v) = +-1 at step one, after the bias correction), so a step's direction worked
+out by hand gives the weight after it.
 """
 
 from __future__ import annotations
@@ -16,16 +23,36 @@ import numpy as np
 import pytest
 import torch
 
-from seqrank.agents.critics import canonical_weights, load_canonical_weights
-from seqrank.agents.networks import LOG_STD_MAX, LOG_STD_MIN
 from seqrank.agents.sac import SAC, Execution, SACSettings
+from seqrank.agents.sac.critics import canonical_weights, load_canonical_weights
+from seqrank.agents.sac.networks import LOG_STD_MAX, LOG_STD_MIN
 from seqrank.buffer import Batch
 
 OBS, ACT, ROWS = 4, 2, 5
 ALPHA, GAMMA = 0.3, 0.9
-SETTINGS = SACSettings(16, 2, 1e-3, 1e-3, 1e-3, ALPHA, GAMMA, 0.005, 1)
+SETTINGS = SACSettings(
+    hidden=16,
+    layers=2,
+    actor_lr=1e-3,
+    critic_lr=1e-3,
+    alpha_lr=1e-3,
+    init_temperature=ALPHA,
+    discount=GAMMA,
+    tau=0.005,
+    target_update_every=1,
+)
 MEANS, LOG_STDS = (0.5, -0.3), (-3.0, -2.0)  # narrow: entropy below the target's -2
 TARGET_Q, CRITIC_Q = (1.5, 2.5), (0.7, -0.4)
+CPU = torch.device("cpu")
+PATHS = pytest.mark.parametrize(
+    "execution",
+    [
+        Execution(),
+        Execution(stacked_critics=True, fused_adam=True),
+        Execution.fast(CPU, "fp32"),
+    ],
+    ids=["reference", "autograd-fast", "flat"],
+)
 
 
 def raw_log_std(log_std: float) -> float:
@@ -35,7 +62,7 @@ def raw_log_std(log_std: float) -> float:
 
 def constant_agent(execution: Execution) -> SAC:
     torch.manual_seed(0)
-    agent = SAC(OBS, ACT, SETTINGS, torch.device("cpu"), execution)
+    agent = SAC(OBS, ACT, SETTINGS, CPU, execution)
     with torch.no_grad():
         last = agent.actor.net[-1]
         last.weight.zero_()
@@ -60,6 +87,14 @@ def log_prob_by_hand(noise: np.ndarray) -> np.ndarray:
     return total
 
 
+def soft_target_by_hand(batch: Batch, next_noise: torch.Tensor) -> np.ndarray:
+    """y per row: the target critics output their biases, the next action's log-prob is
+    `log_prob_by_hand`'s."""
+    r, not_done = batch.reward.numpy()[:, 0], batch.not_done.numpy()[:, 0]
+    soft_value = min(TARGET_Q) - ALPHA * log_prob_by_hand(next_noise.numpy().astype(np.float64))
+    return r + GAMMA * not_done * soft_value
+
+
 def batch_and_noise() -> tuple[Batch, torch.Tensor, torch.Tensor]:
     g = torch.Generator().manual_seed(7)
     obs, next_obs = torch.randn(ROWS, OBS, generator=g), torch.randn(ROWS, OBS, generator=g)
@@ -71,15 +106,14 @@ def batch_and_noise() -> tuple[Batch, torch.Tensor, torch.Tensor]:
     return Batch(obs, action, reward, next_obs, not_done), next_noise, noise
 
 
-@pytest.mark.parametrize("execution", [Execution(), Execution(True, True)], ids=["ref", "fast"])
+@PATHS
 def test_the_critic_loss_is_the_soft_bellman_error_worked_out_by_hand(execution):
     agent = constant_agent(execution)
     batch, next_noise, noise = batch_and_noise()
     agent.update_with_noise(batch, next_noise, noise)
 
     r, not_done = batch.reward.numpy()[:, 0], batch.not_done.numpy()[:, 0]
-    soft_value = min(TARGET_Q) - ALPHA * log_prob_by_hand(next_noise.numpy().astype(np.float64))
-    target = r + GAMMA * not_done * soft_value
+    target = soft_target_by_hand(batch, next_noise)
     loss = sum(np.mean((q - target) ** 2) for q in CRITIC_Q)
     assert agent.last_metrics["critic_loss"] == pytest.approx(loss, rel=1e-5)
     # without the entropy term the same batch gives another loss: the check can tell
@@ -87,7 +121,7 @@ def test_the_critic_loss_is_the_soft_bellman_error_worked_out_by_hand(execution)
     assert abs(loss - sum(np.mean((q - entropy_free) ** 2) for q in CRITIC_Q)) > 0.1
 
 
-@pytest.mark.parametrize("execution", [Execution(), Execution(True, True)], ids=["ref", "fast"])
+@PATHS
 def test_the_temperature_steps_against_the_entropy_gap_by_hand(execution):
     """alpha's loss is alpha * mean(-log pi - target entropy); Adam's first step moves
     log alpha by lr against the sign of its gradient (m / sqrt(v) = +-1 at step one)."""
@@ -100,3 +134,58 @@ def test_the_temperature_steps_against_the_entropy_gap_by_hand(execution):
     assert gap < 0  # the policy is narrower than the target entropy allows: alpha must rise
     expected = math.log(ALPHA) - SETTINGS.alpha_lr * math.copysign(1.0, ALPHA * gap)
     assert float(agent.log_alpha.detach()) == pytest.approx(expected, abs=1e-6)
+
+
+def head_gradient_by_hand(noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The actor loss's gradient by the head's mean and by its log-std, per action
+    dimension. L = mean(alpha log pi - min Q) with u = mean + exp(log_std) noise: only
+    -log(1 - tanh(u)^2) of log pi depends on the mean (d/du = 2 tanh(u)); the log-std also
+    enters as -log_std (d = -1) and through u (d u / d log_std = exp(log_std) noise)."""
+    by_mean, by_log_std = np.zeros(ACT), np.zeros(ACT)
+    for j, (mean, log_std) in enumerate(zip(MEANS, LOG_STDS, strict=True)):
+        std = math.exp(log_std)
+        squashed = np.tanh(mean + std * noise[:, j])
+        by_mean[j] = ALPHA * np.mean(2 * squashed)
+        by_log_std[j] = ALPHA * np.mean(-1 + 2 * squashed * std * noise[:, j])
+    return by_mean, by_log_std
+
+
+@PATHS
+def test_the_actor_steps_along_the_log_probabilitys_gradient_by_hand(execution):
+    """The actor's head bias after one update: the mean and the raw log-std (which moves as
+    the log-std does: the squashing is increasing) each one lr against their gradient's
+    sign. The critic's own step just before makes Q depend on the action by O(lr): too
+    little to turn a sign worked out here (each gradient is at least 0.05 from zero)."""
+    agent = constant_agent(execution)
+    batch, next_noise, noise = batch_and_noise()
+    agent.update_with_noise(batch, next_noise, noise)
+
+    by_mean, by_log_std = head_gradient_by_hand(noise.numpy().astype(np.float64))
+    assert min(abs(by_mean).min(), abs(by_log_std).min()) > 0.05
+    assert (by_log_std < 0).all()  # the policy widens: its entropy is rewarded
+    lr = SETTINGS.actor_lr
+    start = [*MEANS, *(raw_log_std(s) for s in LOG_STDS)]
+    expected = np.array(start) - lr * np.sign(np.concatenate([by_mean, by_log_std]))
+    bias = agent.actor.net[-1].bias.detach().numpy()
+    np.testing.assert_allclose(bias, expected, rtol=0, atol=1e-6)
+
+
+@PATHS
+def test_the_target_critic_moves_tau_of_the_way_to_the_stepped_critic(execution):
+    """Each critic's output bias steps one lr against the sign of its loss's gradient,
+    mean(2 (Q_k - y)); then, as the target is updated every update here, the target's
+    bias becomes (1 - tau) target + tau critic."""
+    agent = constant_agent(execution)
+    batch, next_noise, noise = batch_and_noise()
+    agent.update_with_noise(batch, next_noise, noise)
+
+    target = soft_target_by_hand(batch, next_noise)
+    lr, tau = SETTINGS.critic_lr, SETTINGS.tau
+    stepped = [q - lr * math.copysign(1.0, np.mean(2 * (q - target))) for q in CRITIC_Q]
+    moved = [(1 - tau) * t + tau * c for t, c in zip(TARGET_Q, stepped, strict=True)]
+    for critic, expected in ((agent.critic, stepped), (agent.critic_target, moved)):
+        weights = canonical_weights(critic)
+        last_layer = max(int(name.split(".")[1]) for name in weights)
+        for member, value in zip(("q1", "q2"), expected, strict=True):
+            bias = float(weights[f"{member}.{last_layer}.bias"])
+            assert bias == pytest.approx(value, abs=1e-6), (member, critic is agent.critic)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import torch
 
-from seqrank.agents.critics import canonical_weights, load_canonical_weights
-from seqrank.agents.precision import matmul_precision
 from seqrank.agents.sac import SAC, Execution, SACSettings
+from seqrank.agents.sac.critics import canonical_weights, load_canonical_weights
+from seqrank.agents.sac.precision import matmul_precision
 from seqrank.buffer import Batch, ReplayBuffer
 from seqrank.config import resolve_config
 from seqrank.reward.model import RewardModel
@@ -21,7 +21,17 @@ from seqrank.training.trainer import Trainer
 from support.runs import resume_after_kill, run, tiny_config, without_timing
 
 CPU = torch.device("cpu")
-SETTINGS = SACSettings(64, 2, 5e-4, 5e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+SETTINGS = SACSettings(
+    hidden=64,
+    layers=2,
+    actor_lr=5e-4,
+    critic_lr=5e-4,
+    alpha_lr=1e-4,
+    init_temperature=0.1,
+    discount=0.99,
+    tau=0.005,
+    target_update_every=2,
+)
 OBS, ACT, ROWS = 7, 3, 48
 CUDA = pytest.mark.gpu
 

@@ -110,7 +110,17 @@ def test_knn_distance_matches_brute_force_across_chunks():
 
 def test_mrn_meta_step_changes_the_reward_and_lowers_its_outer_loss():
     torch.manual_seed(0)
-    settings = SACSettings(32, 2, 1e-3, 1e-2, 1e-4, 0.1, 0.99, 0.005, 2)
+    settings = SACSettings(
+        hidden=32,
+        layers=2,
+        actor_lr=1e-3,
+        critic_lr=1e-2,
+        alpha_lr=1e-4,
+        init_temperature=0.1,
+        discount=0.99,
+        tau=0.005,
+        target_update_every=2,
+    )
     agent = SAC(3, 2, settings, CPU)
     model = RewardModel(3, 5, 32, 2, 1e-2, CPU)
     batch = Batch(

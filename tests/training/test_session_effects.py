@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from seqrank.agents.critics import canonical_weights
+from seqrank.agents.sac.critics import canonical_weights
 from seqrank.training import loop
 from seqrank.training.runs import RunDir
 from seqrank.training.trainer import Trainer

@@ -18,7 +18,7 @@ import torch
 import torch.nn.functional as F
 
 from seqrank.agents.networks import mlp
-from seqrank.agents.sac import descend, soft_update
+from seqrank.agents.update_steps import descend, soft_update
 from seqrank.buffer import Batch, BatchSource
 
 

@@ -31,7 +31,7 @@ import torch
 from torch import nn
 
 from seqrank.agents.networks import mlp
-from seqrank.agents.sac import descend, soft_update
+from seqrank.agents.update_steps import descend, soft_update
 from seqrank.buffer import Batch
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0  # the authors' clip for the MuJoCo policy

@@ -34,17 +34,7 @@ def make_agent(config: TrainConfig, env: EnvShape, runtime: Runtime) -> Agent:
 
 
 def make_sac(config: TrainConfig, env: EnvShape, runtime: Runtime) -> SAC:
-    settings = SACSettings(
-        config.hidden,
-        config.layers,
-        config.actor_lr,
-        config.critic_lr,
-        config.alpha_lr,
-        config.init_temperature,
-        config.discount,
-        config.tau,
-        config.target_update_every,
-    )
+    settings = SACSettings.from_config(config)
     execution = Execution.fast(runtime.device, runtime.precision) if runtime.fast else Execution()
     return SAC(env.obs_dim, env.act_dim, settings, runtime.device, execution)
 

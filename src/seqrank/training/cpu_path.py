@@ -32,10 +32,16 @@ import platform
 import tempfile
 import time
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import torch
+
+from seqrank.config import TrainConfig
+
+if TYPE_CHECKING:
+    from seqrank.agents.sac import SACSettings
 
 NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
 MIN_SPEEDUP = 1.25  # bf16: a lower precision pays for itself only with a clear gain
@@ -132,13 +138,23 @@ def measured_speedup(shape: UpdateShape, precision: str = "bf16") -> float:
     return float(known[key])
 
 
+def timed_settings(shape: UpdateShape) -> SACSettings:
+    """The SAC whose updates are timed: a default run's (`TrainConfig()`) at the shape's
+    sizes. Of the other settings only `target_update_every` changes an update's cost (the
+    learning rates, temperature and discount change its numbers, not its operations)."""
+    from seqrank.agents.sac import SACSettings
+
+    sized = replace(TrainConfig(), hidden=shape.hidden, layers=shape.layers)
+    return SACSettings.from_config(sized)
+
+
 def _measure(shape: UpdateShape, precision: str) -> float:
     """Median of interleaved rounds; the global random state is left as it was."""
-    from seqrank.agents.sac import SAC, Execution, SACSettings
+    from seqrank.agents.sac import SAC, Execution
     from seqrank.buffer import Batch
 
     with torch.random.fork_rng():
-        settings = SACSettings(shape.hidden, shape.layers, 3e-4, 3e-4, 1e-4, 0.1, 0.99, 0.005, 2)
+        settings = timed_settings(shape)
         cpu = torch.device("cpu")
         agents = [SAC(shape.obs_dim, shape.act_dim, settings, cpu)]
         flat = Execution.fast(cpu, precision)  # what the run would take: the flat update

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.agents.networks import Actor
+from seqrank.agents.sac.networks import Actor
 from seqrank.training.evaluation import PolicyScore, evaluate_policy
 
 _WORKER: dict[str, Any] = {}

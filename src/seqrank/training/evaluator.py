@@ -9,8 +9,8 @@ from typing import Any, Protocol
 
 import torch
 
-from seqrank.agents.networks import Actor
 from seqrank.agents.protocol import Agent
+from seqrank.agents.sac.networks import Actor
 from seqrank.envs.base import SimEnv
 from seqrank.training.eval_worker import (
     BackgroundEvaluator,

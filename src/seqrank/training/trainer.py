@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from seqrank.agents.precision import matmul_precision
+from seqrank.agents.sac.precision import matmul_precision
 from seqrank.buffer import ReplayBuffer
 from seqrank.choices import RewardSignal
 from seqrank.config import TrainConfig

@@ -6,7 +6,8 @@ stacks the twin critics into batched matmuls, uses fused Adam, draws policy nois
 device and, on CUDA, replays the update from a captured graph (`cuda_graph.GraphedCall`);
 precision (fp32, TF32, bf16 autocast) is a context around the same code. On a CPU the fast
 path's update is `flat_update`: the same arithmetic written out over flat buffers (fewer
-operations; bf16 by explicit casts rather than autocast). Nothing in an update reads a
+operations; bf16 by explicit casts rather than autocast), whose parameters are views of
+those buffers (checked after every load and critic reset). Nothing in an update reads a
 value back to the host: losses are read when `last_metrics` is asked for.
 """
 
@@ -15,69 +16,27 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import torch
 import torch.nn.functional as F
 
-from seqrank.agents.critics import Critic, StackedTwinCritic, TwinCritic
-from seqrank.agents.cuda_graph import GraphedCall
-from seqrank.agents.flat_update import FlatSACUpdate
-from seqrank.agents.graph_check import UpdateProbe, check_first_replay
-from seqrank.agents.networks import Actor, act_one_numpy, squashed_gaussian
-from seqrank.agents.precision import autocast, matmul_precision
-from seqrank.agents.sac_state import load_sac_state, sac_state
+from seqrank.agents.sac.critics import Critic, StackedTwinCritic, TwinCritic
+from seqrank.agents.sac.cuda_graph import GraphedCall
+from seqrank.agents.sac.flat_update import FlatSACUpdate
+from seqrank.agents.sac.graph_check import UpdateProbe, check_first_replay
+from seqrank.agents.sac.networks import Actor, act_one_numpy, squashed_gaussian
+from seqrank.agents.sac.precision import autocast, matmul_precision
+from seqrank.agents.sac.settings import Execution, SACSettings
+from seqrank.agents.sac.state import load_sac_state, sac_state
+from seqrank.agents.update_steps import descend, soft_update
 from seqrank.buffer import Batch, BatchSource
-
-
-@dataclass(frozen=True)
-class SACSettings:
-    hidden: int
-    layers: int
-    actor_lr: float
-    critic_lr: float
-    alpha_lr: float
-    init_temperature: float
-    discount: float
-    tau: float
-    target_update_every: int
-
-
-@dataclass(frozen=True)
-class Execution:
-    """How the update runs; the arithmetic is the same. The defaults are the reference:
-    two `nn.Linear` critics, plain Adam, noise from the run's generator, strict fp32."""
-
-    stacked_critics: bool = False
-    fused_adam: bool = False
-    device_noise: bool = False  # on CUDA only; a CPU run draws from the run's generator
-    graphs: bool = False  # CUDA only: replay the update from a captured graph
-    precision: str = "fp32"
-    flat: bool = False  # CPU: flat buffers and a hand-written backward (`flat_update`)
-
-    @classmethod
-    def fast(cls, device: torch.device, precision: str) -> Execution:
-        cuda = device.type == "cuda"
-        return cls(True, True, cuda, cuda, precision, flat=not cuda)
 
 
 def critic_loss(q: tuple[torch.Tensor, torch.Tensor], target: torch.Tensor) -> torch.Tensor:
     """Both critics' mean squared error against one target, summed."""
     return F.mse_loss(q[0], target) + F.mse_loss(q[1], target)
-
-
-def descend(optimizer: torch.optim.Optimizer, loss: torch.Tensor) -> None:
-    """One optimiser step on `loss`."""
-    optimizer.zero_grad(set_to_none=True)
-    loss.backward()
-    optimizer.step()
-
-
-@torch.no_grad()
-def soft_update(target: Iterable[torch.Tensor], source: Iterable[torch.Tensor], tau: float) -> None:
-    """target <- (1 - tau) target + tau source, for every tensor at once."""
-    torch._foreach_lerp_(list(target), list(source), tau)
 
 
 class SAC:
@@ -207,6 +166,8 @@ class SAC:
         self.critic_target.reinitialise()
         self.critic_target.load_state_dict(self.critic.state_dict())
         _zero_optimizer_state(self.critic_opt)
+        if self._flat is not None:
+            self._flat.check_views()
 
     def state_dict(self) -> dict[str, Any]:
         return sac_state(self)
@@ -216,6 +177,7 @@ class SAC:
         graph stays valid."""
         load_sac_state(self, state)
         if self._flat is not None:
+            self._flat.check_views()
             self._flat.adopt_optimiser_state()
 
     # ---- the update ---------------------------------------------------------------------

@@ -3,199 +3,58 @@
 On a CPU the update's cost beyond its matrix products is per operation (autograd's
 bookkeeping, a cast per weight per use under autocast, an optimiser call per tensor), not
 arithmetic. So here each network's weights, gradients and Adam moments live in one flat
-buffer (the modules' parameters are views of it): one cast gives a network's weights in
-the compute precision, one fused Adam call steps it, one lerp moves the target critic. The
-backward passes are written by hand (two ReLU MLPs and the squashed Gaussian's head) and the
+buffer (`flat_buffers`): one cast gives a network's weights in the compute precision, one
+fused Adam call steps it, one lerp moves the target critic. The backward passes are
+written by hand (`flat_backward`: two ReLU MLPs and the squashed Gaussian's head) and the
 actor runs once on the next and current observations together (its weights do not change
-before its own step). `tests/agents/test_flat_update.py` holds it to autograd's update.
+before its own step). `tests/agents/test_flat_update.py` holds it to autograd's update;
+`tests/agents/test_sac_by_hand.py` holds both to numbers worked out by hand.
 
-The `torch.optim.Adam` objects stay as the record of Adam's state (checkpoints read them):
-their per-parameter moments are views of the flat moments, and they are never stepped here.
+The update, for a batch of B rows (SPEC section 1; autograd's `SAC._step` computes the same):
+
+    y      = r + gamma * not_done * (min(Q1', Q2')(s', a') - alpha log pi(a'|s'))
+    L_Q    = sum_k mean (Q_k(s, a) - y)^2           dL_Q/dQ_k = 2 (Q_k - y) / B
+    L_pi   = mean (alpha log pi(a~|s) - min(Q1, Q2)(s, a~))
+             dL_pi/dQ_k = -1/B where Q_k is the smaller (1/2 each on a tie: `min_gradient`),
+             dL_pi/dlog pi = alpha / B, dL_pi/da~ through the stepped critic's input
+             gradient (its last act_dim columns; no gradient for the critic's weights)
+    L_alpha = mean alpha (-log pi(a~|s) - H_target)  dL/dlog alpha = alpha mean(-log pi - H_target)
+    target <- (1 - tau) target + tau critic, every `target_update_every` updates
+
+Invariants (what a change here must keep):
+
+- The modules' parameters are views of the flat buffers. Whatever gives a parameter other
+  storage (assigning `param.data`, a new `nn.Parameter`: the list in `flat_buffers`)
+  unhooks its module from the update without an error; `FlatSACUpdate.check_views` raises
+  instead, and `SAC` runs it after every load and critic reset.
+- `param.grad` is always None: the gradients live in the flat gradient buffers
+  (`FlatAdam.grad`). Gradient clipping or grad-norm logging must read or scale those
+  (`critic_adam.grad`, `actor_adam.grad`) before the Adam step, not `param.grad`.
+- The `torch.optim.Adam` objects stay as the record of Adam's state (checkpoints read
+  them): their per-parameter moments are views of the flat moments, and they are never
+  stepped here (stepping one raises).
+
+When to delete it: this module exists only because eager autograd is slower on a CPU. Once
+`torch.compile` of the autograd update (`scripts/compile_probe.py` times both at the small
+preset's sizes) is at least as fast as this update in fp32 and bf16, delete `flat_update`,
+`flat_buffers` and `flat_backward`, and `Execution.fast` on a CPU becomes the compiled
+autograd update.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Protocol
 
 import torch
 from torch import nn
-from torch.optim.adam import adam
 
-from seqrank.agents.networks import LOG_STD_MAX, LOG_STD_MIN, squashed_gaussian
+from seqrank.agents.sac.flat_backward import Layer, backward, forward, head_backward, min_gradient
+from seqrank.agents.sac.flat_buffers import FlatAdam, FlatNet, FlatViews, flatten, views
+from seqrank.agents.sac.networks import squashed_gaussian
 from seqrank.buffer import Batch
 
 COMPUTE_DTYPES = {"fp32": torch.float32, "bf16": torch.bfloat16}
-_relu_backward = torch.ops.aten.threshold_backward
-
-
-def flatten(params: Sequence[nn.Parameter], flat: torch.Tensor) -> None:
-    """Copies `params` into `flat` and makes each parameter a view of its slice."""
-    offset = 0
-    with torch.no_grad():
-        for param in params:
-            view = flat[offset : offset + param.numel()].view_as(param)
-            view.copy_(param)
-            param.data = view
-            offset += param.numel()
-
-
-def views(flat: torch.Tensor, like: Sequence[torch.Tensor]) -> list[torch.Tensor]:
-    """`flat` cut into tensors shaped as `like`, in order."""
-    sizes = [t.numel() for t in like]
-    return [part.view_as(t) for part, t in zip(flat.split(sizes), like, strict=True)]
-
-
-class FlatAdam:
-    """Adam (torch's fused kernel) on one flat parameter buffer, its state recorded in a
-    `torch.optim.Adam` as views, so checkpoints and resets see one state."""
-
-    def __init__(self, optimizer: torch.optim.Adam, flat: torch.Tensor):
-        self.optimizer, self.flat = optimizer, flat
-        self.params: list[torch.Tensor] = list(optimizer.param_groups[0]["params"])
-        self.grad = torch.zeros_like(flat)
-        self.exp_avg, self.exp_avg_sq = torch.zeros_like(flat), torch.zeros_like(flat)
-        self.steps = torch.zeros((), dtype=torch.float32)
-        self._recorded: torch.Tensor | None = None  # the first parameter's recorded moment
-        optimizer.step = _stepped_elsewhere  # type: ignore[method-assign]
-
-    def adopt(self) -> None:
-        """Takes the optimiser's recorded state (after a load) into the flat buffers; an
-        empty record stays empty until the first step, as with torch's Adam."""
-        state = self.optimizer.state
-        if not state:
-            return
-        with torch.no_grad():
-            for moment in ("exp_avg", "exp_avg_sq"):
-                values = [state[p][moment].clone() for p in self.params]
-                for view, value in zip(
-                    views(getattr(self, moment), self.params), values, strict=True
-                ):
-                    view.copy_(value)
-            self.steps.copy_(state[self.params[0]]["step"])
-        self._record()
-
-    def _record(self) -> None:
-        moments = views(self.exp_avg, self.params), views(self.exp_avg_sq, self.params)
-        for param, avg, avg_sq in zip(self.params, *moments, strict=True):
-            self.optimizer.state[param] = {"step": self.steps, "exp_avg": avg, "exp_avg_sq": avg_sq}
-        self._recorded = self.optimizer.state[self.params[0]]["exp_avg"]
-
-    def step(self) -> None:
-        """One Adam step on `grad` (fresh state on the first step or after a reset; a
-        record replaced behind its back, e.g. by the optimiser's own `load_state_dict`,
-        is taken in first)."""
-        state = self.optimizer.state
-        if not state:
-            self.exp_avg.zero_()
-            self.exp_avg_sq.zero_()
-            self.steps.zero_()
-            self._record()
-        elif state.get(self.params[0], {}).get("exp_avg") is not self._recorded:
-            self.adopt()
-        group = self.optimizer.param_groups[0]
-        beta1, beta2 = group["betas"]
-        adam(
-            [self.flat], [self.grad], [self.exp_avg], [self.exp_avg_sq], [], [self.steps],
-            fused=True, amsgrad=False, beta1=beta1, beta2=beta2, lr=group["lr"],
-            weight_decay=group["weight_decay"], eps=group["eps"], maximize=False,
-        )  # fmt: skip
-
-
-def _stepped_elsewhere(*args: object, **kwargs: object) -> None:
-    raise RuntimeError(
-        "this optimiser only records the Adam state of a flat update "
-        "(seqrank.agents.flat_update), which steps the weights itself; stepping it too "
-        "would move them twice"
-    )
-
-
-@dataclass(frozen=True)
-class Layer:
-    """One linear layer of a stack of `n` networks: weight (n, in, out) as used in the
-    product, bias (n, 1, out), and where the weight's gradient goes in its stored layout."""
-
-    weight: torch.Tensor
-    bias: torch.Tensor
-    grad_weight: torch.Tensor
-    grad_bias: torch.Tensor
-    stored_out_in: bool  # nn.Linear's (out, in) layout rather than (in, out)
-
-
-def forward(layers: Sequence[Layer], x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
-    """The MLP's output (ReLU between layers) and each layer's input, kept for `backward`."""
-    inputs = []
-    for i, layer in enumerate(layers):
-        inputs.append(x)
-        x = torch.baddbmm(layer.bias, x, layer.weight)
-        if i < len(layers) - 1:
-            x = torch.relu_(x)
-    return x, inputs
-
-
-def backward(
-    layers: Sequence[Layer], inputs: Sequence[torch.Tensor], grad: torch.Tensor, weights: bool
-) -> torch.Tensor | None:
-    """Back through the MLP from its output's gradient. With `weights`, the weights'
-    gradients are written in place (and None returned); without, the gradient of the input
-    is returned and no weight gradient is made (the actor's loss needs the critic's so)."""
-    for i in reversed(range(len(layers))):
-        layer, x = layers[i], inputs[i]
-        if weights:
-            if layer.stored_out_in:
-                torch.bmm(grad.transpose(1, 2), x, out=layer.grad_weight)
-            else:
-                torch.bmm(x.transpose(1, 2), grad, out=layer.grad_weight)
-            torch.sum(grad, dim=1, keepdim=True, out=layer.grad_bias)
-            if i == 0:
-                return None
-        grad_input = torch.bmm(grad, layer.weight.transpose(1, 2))
-        if i == 0:
-            return grad_input
-        grad = _relu_backward(grad_input, x, 0)
-    raise ValueError("an MLP needs at least one layer")
-
-
-def head_backward(
-    head: torch.Tensor, noise: torch.Tensor, action: torch.Tensor, grad_action: torch.Tensor,
-    grad_log_prob: torch.Tensor,
-) -> torch.Tensor:  # fmt: skip
-    """The gradient of the actor's head (mean, raw log-std) from those of the squashed
-    Gaussian's action and of its log-probability (`networks.squashed_gaussian`):
-    d action / d pre_tanh = 1 - action^2, d log_prob / d pre_tanh = 2 action,
-    d log_prob / d log_std = -1 besides its path through pre_tanh = mean + std * noise."""
-    raw_log_std = head[:, action.shape[1] :]
-    squashed = torch.tanh(raw_log_std)
-    half_range = 0.5 * (LOG_STD_MAX - LOG_STD_MIN)
-    std = torch.exp(LOG_STD_MIN + half_range * (squashed + 1))
-    grad_pre = grad_action * (1 - action * action) + (2 * grad_log_prob) * action
-    grad_log_std = grad_pre * std * noise - grad_log_prob
-    grad_raw = grad_log_std * (half_range * (1 - squashed * squashed))
-    return torch.cat([grad_pre, grad_raw], dim=1)
-
-
-def min_gradient(q: torch.Tensor, scale: float) -> torch.Tensor:
-    """`scale` times the gradient of min(q[0], q[1]) with respect to q, ties split in half
-    (as autograd's `torch.minimum`)."""
-    first = (q[0] < q[1]).to(q.dtype) + 0.5 * (q[0] == q[1]).to(q.dtype)
-    return torch.stack([first, 1 - first]) * scale
-
-
-class FlatNet:
-    """A network's weights flattened: fp32 master copy, a copy in the compute precision and
-    its gradient buffer (the same tensors as the fp32 ones when computing in fp32)."""
-
-    def __init__(self, master: torch.Tensor, params: Sequence[torch.Tensor], dtype: torch.dtype):
-        self.master, self.params = master, params
-        low = dtype != master.dtype
-        self.compute = torch.empty_like(master, dtype=dtype) if low else master
-        self.compute_views = views(self.compute, params)
-
-    def cast(self, size: int | None = None) -> None:
-        """The compute copy brought up to date (its first `size` values only, if given)."""
-        if self.compute is not self.master:
-            self.compute[:size].copy_(self.master[:size])
 
 
 class FlatAgent(Protocol):
@@ -248,6 +107,25 @@ class FlatSACUpdate:
         self.actor_grad = self._grad_buffer(self.actor_adam)
         self.critic_layers, self.target_layers = self._critic_layers(len(critic) // 2)
         self.actor_layers = self._actor_layers()
+        self._views = [
+            FlatViews.of(name, self._parameters_of(name))
+            for name in ("actor", "critic", "critic_target", "log_alpha")
+        ]
+
+    def check_views(self) -> None:
+        """Raises RuntimeError if a module's parameter no longer views its flat buffer."""
+        for hooked in self._views:
+            hooked.check()
+
+    def _parameters_of(self, name: str) -> Callable[[], list[tuple[str, torch.Tensor]]]:
+        """The agent's `name` (a module or the temperature) as named tensors, read anew at
+        each call: a module replaced on the agent is seen too."""
+
+        def current() -> list[tuple[str, torch.Tensor]]:
+            part = getattr(self.agent, name)
+            return [(name, part)] if isinstance(part, torch.Tensor) else [*part.named_parameters()]
+
+        return current
 
     def _grad_buffer(self, adam: FlatAdam) -> torch.Tensor:
         return adam.grad if self.dtype == adam.grad.dtype else adam.grad.to(self.dtype)

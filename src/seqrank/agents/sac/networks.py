@@ -1,8 +1,8 @@
-"""The networks agents are made of: an MLP and SAC's squashed-Gaussian actor."""
+"""SAC's actor: a squashed Gaussian over an MLP (`agents.networks.mlp`), batched in torch
+and for one observation in numpy."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -10,25 +10,9 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from seqrank.agents.networks import mlp
+
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
-
-
-def mlp(inputs: int, hidden: int, layers: int, outputs: int) -> nn.Sequential:
-    """`layers` hidden ReLU layers; orthogonal weights, zero biases."""
-    sizes = [inputs] + [hidden] * layers + [outputs]
-    modules: list[nn.Module] = []
-    for a, b in itertools.pairwise(sizes):
-        modules += [nn.Linear(a, b), nn.ReLU()]
-    net = nn.Sequential(*modules[:-1])
-    orthogonal_init(net)
-    return net
-
-
-def orthogonal_init(net: nn.Module) -> None:
-    for module in net.modules():
-        if isinstance(module, nn.Linear):
-            nn.init.orthogonal_(module.weight)
-            nn.init.zeros_(module.bias)
 
 
 class Actor(nn.Module):

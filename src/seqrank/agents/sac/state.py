@@ -12,7 +12,7 @@ from typing import Any
 
 import torch
 
-from seqrank.agents.critics import Canonical, canonical_weights, load_canonical_weights
+from seqrank.agents.sac.critics import Canonical, canonical_weights, load_canonical_weights
 
 LAYOUT = "sac-canonical-1"
 MOMENTS = ("exp_avg", "exp_avg_sq")
