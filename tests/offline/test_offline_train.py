@@ -158,3 +158,9 @@ def test_a_dataset_that_changed_since_the_run_began_is_refused_on_resume(tmp_pat
     write_dataset(data, episodes=5, seed=1)
     assert main(["offline", "train", "--resume", str(out), "--quiet"]) == 2
     assert "changed since" in capsys.readouterr().err
+
+
+def test_the_api_names_an_unknown_setting_before_anything_is_made(dataset, tmp_path):
+    with pytest.raises(ValueError, match="unknown setting stepz"):
+        seqrank.offline_train(dataset, tmp_path / "run", stepz=10)
+    assert not (tmp_path / "run").exists()

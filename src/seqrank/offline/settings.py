@@ -135,6 +135,8 @@ def validate(config: OfflineConfig) -> OfflineConfig:
     _number(config, "expectile", lambda v: 0 < v < 1, "strictly between 0 and 1")
     _number(config, "discount", lambda v: 0 <= v <= 1, "in [0, 1]")
     _number(config, "temperature", lambda v: v >= 0, ">= 0 (0 is behaviour cloning)")
+    if not isinstance(config.normalize_observations, bool):
+        raise SettingError(f"{setting('normalize_observations')} must be true or false")
     if config.device not in ("auto", "cpu", "cuda"):
         raise SettingError(
             f"unknown {setting('device')} {config.device!r}; accepted: auto, cpu, cuda"
