@@ -226,7 +226,7 @@ def test_a_parameter_that_no_longer_views_its_flat_buffer_is_refused(unhook, the
     _, flat = _same_start(FLAT)
     state = flat.state_dict()
     unhook(flat)
-    with pytest.raises(RuntimeError, match="no longer views it|now has"):
+    with pytest.raises(RuntimeError, match="no longer views it"):
         flat.load_state_dict(state) if then == "load_state_dict" else flat.reset_critic()
 
 
