@@ -35,10 +35,10 @@ Invariants (what a change here must keep):
   stepped here (stepping one raises).
 
 When to delete it: this module exists only because eager autograd is slower on a CPU. Once
-`torch.compile` of the autograd update (`scripts/compile_probe.py` times both at the small
-preset's sizes) is at least as fast as this update in fp32 and bf16, delete `flat_update`,
-`flat_buffers` and `flat_backward`, and `Execution.fast` on a CPU becomes the compiled
-autograd update.
+`torch.compile` of the autograd update is at least as fast as this update in fp32 and bf16
+(`scripts/compile_probe.py` times this, the eager and the compiled autograd update at the
+small preset's sizes and says whether this holds), delete `flat_update`, `flat_buffers` and
+`flat_backward`, and `Execution.fast` on a CPU becomes the compiled autograd update.
 """
 
 from __future__ import annotations
