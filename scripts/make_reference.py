@@ -3,7 +3,7 @@
     .venv/bin/python scripts/make_reference.py RUNS_DIR... --measured "FOLDER: COMMAND"
 
 Every run directory under the given folders whose config says `reward = true` is read;
-runs are grouped by task and agent settings (`seqrank.reference.AGENT_SETTINGS`), and each
+runs are grouped by task and agent settings (`seqrank.reference.REFERENCE_KEY`), and each
 evaluation step gets the mean and 95% t-interval over the group's seeds. The entries replace
 those of the same task and settings in `src/seqrank/true_reward_reference.json`.
 """
@@ -16,7 +16,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from seqrank.reference import REFERENCE_FILE, agent_settings
+from seqrank.reference import REFERENCE_FILE, reference_key
 from seqrank.report.stats import interval
 from seqrank.rows import read_rows
 
@@ -29,7 +29,7 @@ def true_reward_runs(folders: list[Path]) -> dict[str, list[Path]]:
             run = config_path.parent
             if config.get("reward") != "true" or not (run / "summary.json").exists():
                 continue
-            key = json.dumps({"task": config["task"], "settings": agent_settings(config)})
+            key = json.dumps({"task": config["task"], "settings": reference_key(config)})
             groups[key].append(run)
     return groups
 

@@ -16,23 +16,23 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from seqrank.config.roles import Role
+from seqrank.config.train_config import ROLES
+
 REFERENCE_FILE = Path(__file__).with_name("true_reward_reference.json")
 
-# the settings that shape the agent's learning: a reference applies to a run only when all
-# of them are equal (evaluation episodes, seeds and feedback settings do not matter)
-AGENT_SETTINGS = (
-    "scale",
-    "hidden",
-    "layers",
-    "batch",
-    "actor_lr",
-    "critic_lr",
-    "alpha_lr",
-    "init_temperature",
-    "discount",
-    "tau",
-    "target_update_every",
-    "seed_steps",
+# The key of the file's entries: the settings that shape how the true-reward agent learns.
+# A reference applies to a run only when all of them are equal (evaluation episodes, seeds
+# and feedback settings do not matter): seqrank's agent settings but those alike in every
+# true-reward run or that compute the same update otherwise, the random warm-up before it
+# learns, and the size preset. A new agent setting joins the key, so entries measured
+# without it no longer apply (`scripts/make_reference.py` measures them again).
+SAME_LEARNING = ("backbone", "path", "precision")  # pebble for every baseline; execution
+BEYOND_THE_AGENT = ("scale", "seed_steps")
+REFERENCE_KEY = tuple(
+    name
+    for name, role in ROLES.items()
+    if name in BEYOND_THE_AGENT or (role is Role.AGENT and name not in SAME_LEARNING)
 )
 
 
@@ -50,8 +50,9 @@ class Reference:
         return f"{self.mean:.1f} [{self.low:.1f}, {self.high:.1f}] ({self.seeds} seeds)"
 
 
-def agent_settings(config: dict[str, Any]) -> dict[str, Any]:
-    return {name: config.get(name) for name in AGENT_SETTINGS}
+def reference_key(config: dict[str, Any]) -> dict[str, Any]:
+    """The settings of a run's config (`config.json`'s content) that pick its reference."""
+    return {name: config.get(name) for name in REFERENCE_KEY}
 
 
 def reference_for(config: dict[str, Any], step: int, path: Path | None = None) -> Reference | None:
@@ -62,7 +63,7 @@ def reference_for(config: dict[str, Any], step: int, path: Path | None = None) -
     from seqrank.envs import canonical_task
 
     task = canonical_task(config["task"])
-    settings = agent_settings(config)
+    settings = reference_key(config)
     for entry in json.loads(path.read_text())["entries"]:
         if canonical_task(entry["task"]) != task or entry["settings"] != settings:
             continue

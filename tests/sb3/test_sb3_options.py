@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from stable_baselines3 import PPO
 
-from seqrank.config import resolve_config
+from seqrank.config import Role, TrainConfig, resolve_config, settings_of
 from seqrank.errors import SettingError
 from seqrank.sb3 import PreferenceFeedback
 from support.sb3_runs import LINE, TINY, feedback
@@ -50,6 +50,23 @@ def test_options_of_the_sb3_layer_are_refused_by_name(options, named, tmp_path):
     with pytest.raises(SettingError, match=named):
         feedback(**options)
     assert not list(tmp_path.iterdir())
+
+
+OWN_AGENT_AND_LOOP = sorted(settings_of(Role.AGENT, Role.AGENT_FOR_FEEDBACK, Role.BOOKKEEPING))
+
+
+@pytest.mark.parametrize("name", [*OWN_AGENT_AND_LOOP, "task", "reward", "warm_start"])
+def test_every_setting_of_seqranks_own_agent_and_loop_is_refused_even_at_its_default(name):
+    """By its role: a new agent setting is refused, not taken and silently ignored."""
+    with pytest.raises(SettingError, match=f"^{name} is a setting of seqrank's own agent"):
+        PreferenceFeedback(LINE, **{**TINY, name: getattr(TrainConfig, name)})
+
+
+def test_every_other_setting_is_taken():
+    from seqrank.sb3.settings import FEEDBACK_SETTINGS
+
+    others = settings_of(*Role) - set(OWN_AGENT_AND_LOOP)
+    assert others - set(FEEDBACK_SETTINGS) == {"task", "reward", "warm_start", "scale"}
 
 
 def test_a_bad_task_or_environment_is_refused_by_name():

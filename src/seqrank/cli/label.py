@@ -146,7 +146,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
 def _offline_options(args: argparse.Namespace) -> Any:
     """The offline session's settings, checked before anything is written."""
     from seqrank.config import resolve_config
-    from seqrank.config_rules import check_annotator_names
+    from seqrank.config.rules import check_annotator_names
     from seqrank.envs import make_env
     from seqrank.labelling.app import OfflineOptions, check_task_name
     from seqrank.training.runs import RunDir

@@ -6,7 +6,7 @@ from the recorded scheme. When the file runs out, the run asks for no more feedb
 the run's budget ends within a session, that session's first answers are replayed.
 
 The file fixes some of the run's settings (`Recorded`: task, scheme, segment length,
-questions per session, answers in all); `config_rules.take_recorded` makes a replaying
+questions per session, answers in all); `config.resolve_config` makes a replaying
 run take them and refuses settings given otherwise.
 """
 
@@ -51,7 +51,7 @@ class ReplaySource:
 
     def check_compatible(self, task: str, obs_dim: int, act_dim: int) -> None:
         """The file's segments fit the task's features. Whether it was recorded on this
-        task is for the layers that know the tasks' names (`config_rules.take_recorded`,
+        task is for the layers that know the tasks' names (`config.rules.check_recorded`,
         `check_recorded_task`): feedback stays below the environments."""
         width = len(next(iter(self.labels.segments.values()))["features"][0])
         if width != obs_dim + act_dim:

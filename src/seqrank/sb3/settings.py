@@ -2,8 +2,9 @@
 resolved and checked by the run config's own code (`config.resolve_config`, `validate`),
 so a bad value is refused with the same one-line `SettingError` before anything is made.
 
-The agent's own settings (network sizes, learning rates, discount, ...) are the SB3
-model's, so they are refused here, naming where they go instead.
+The settings of seqrank's own agent and loop (network sizes, learning rates, discount,
+evaluation, ...: those whose role says so, `config.Role`) are the SB3 model's and its
+callbacks', so they are refused here, naming where they go instead.
 """
 
 from __future__ import annotations
@@ -14,54 +15,29 @@ from typing import Any
 
 import numpy as np
 
-from seqrank.config import TrainConfig, resolve_config
+from seqrank.config import Role, TrainConfig, resolve_config, settings_of
 from seqrank.errors import SettingError, setting
 from seqrank.scale import resolve_scale
 
-# TrainConfig fields that configure seqrank's own agent, loop or run directory
-AGENT_SETTINGS = frozenset(
-    {
-        "task",
-        "reward",
-        "backbone",
-        "path",
-        "precision",
-        "hidden",
-        "layers",
-        "batch",
-        "actor_lr",
-        "critic_lr",
-        "alpha_lr",
-        "init_temperature",
-        "discount",
-        "tau",
-        "target_update_every",
-        "hybrid_replay",
-        "hybrid_episodes",
-        "start_from",
-        "parts",
-        "warm_start",
-        "meta_update_frequency",
-        "meta_loss_weight",
-        "eval_every",
-        "eval_episodes",
-        "checkpoint_every",
-    }
-)
-FEEDBACK_SETTINGS = tuple(
-    f.name for f in fields(TrainConfig) if f.name not in AGENT_SETTINGS and f.name != "scale"
-)
-# agents whose update PEBBLE's pieces (entropy pre-training, critic reset) fit by default
-PEBBLE_AGENTS = ("SAC", "TD3")
-
-
-# where each of seqrank's own agent settings lives with Stable-Baselines3
-AGENT_HINTS = {
+# where a refused setting goes with Stable-Baselines3, or why it has no place there; the
+# settings named here are refused beside seqrank's own agent and loop
+ELSEWHERE = {
     "hidden": "the network: SAC('MlpPolicy', env, policy_kwargs=dict(net_arch=[256, 256]))",
     "layers": "the network: SAC('MlpPolicy', env, policy_kwargs=dict(net_arch=[256, 256]))",
     "task": "the environment: the first argument, PreferenceFeedback('walker_walk', ...)",
     "reward": "a baseline that asks nothing: train the SB3 model on the environment itself",
+    "warm_start": "not there: RIME's warm start fits the reward model in seqrank's own "
+    "pre-training; pretrain=True trains the SB3 agent on the state-entropy reward only",
 }
+# what the SB3 model and its callbacks replace: seqrank's agent (and what it does for
+# feedback), its loop's evaluation and checkpoints
+OWN_AGENT_AND_LOOP = settings_of(Role.AGENT, Role.AGENT_FOR_FEEDBACK, Role.BOOKKEEPING)
+REFUSED_SETTINGS = OWN_AGENT_AND_LOOP | set(ELSEWHERE)
+FEEDBACK_SETTINGS = tuple(
+    f.name for f in fields(TrainConfig) if f.name not in REFUSED_SETTINGS and f.name != "scale"
+)
+# agents whose update PEBBLE's pieces (entropy pre-training, critic reset) fit by default
+PEBBLE_AGENTS = ("SAC", "TD3")
 # keywords of SB3's models that users pass here by mistake
 SB3_MODEL_KEYWORDS = frozenset(
     {
@@ -82,8 +58,8 @@ SB3_MODEL_KEYWORDS = frozenset(
 
 def check_names(settings: dict[str, Any]) -> None:
     for name in settings:
-        if name in AGENT_SETTINGS:
-            where = AGENT_HINTS.get(
+        if name in REFUSED_SETTINGS:
+            where = ELSEWHERE.get(
                 name, "the SB3 model's own, e.g. SAC(..., learning_rate=..., batch_size=...)"
             )
             raise SettingError(

@@ -43,7 +43,7 @@ FINETUNE_PRESET: dict[str, Any] = {
     "checkpoint_every": 200,
 }
 
-# per part (`config_rules.FINETUNE_PARTS`): the probability that a step's action is random, one
+# per part (`config.rules.FINETUNE_PARTS`): the probability that a step's action is random, one
 # episode per value
 PARTS: dict[str, tuple[float, ...]] = {
     "low": (1.0, 0.9, 0.8, 0.7),

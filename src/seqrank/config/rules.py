@@ -1,6 +1,7 @@
 """The rules a run's settings must keep together, beyond each setting's own range: each
 raises SettingError naming the bad value and what is accepted (called by `validate`; those
-of a replayed label file by `resolve_config`, which knows the settings the user gave)."""
+of a replayed label file by `resolve_config`, which knows the settings the user gave; both
+in `config.resolve`)."""
 
 from __future__ import annotations
 
@@ -13,10 +14,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from seqrank.choices import Backbone, Selection
+from seqrank.config.train_config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.teachers import parse_teacher
-from seqrank.train_config import TrainConfig
 
 if TYPE_CHECKING:
     from seqrank.feedback.replay import Recorded

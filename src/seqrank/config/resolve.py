@@ -1,8 +1,7 @@
-"""One frozen config per run: the CLI options, the saved config.json and the presets at once.
-
-`resolve_config(task, scale, overrides)` starts from the suite defaults (SPEC section 2),
-applies the task's row of the paper's Table 2, then the size preset, then the user's
-overrides. Every field is a `seqrank train` option (`--field-name VALUE`).
+"""A run's config made and checked: `resolve_config(task, scale, overrides)` starts from the
+suite defaults (SPEC section 2), applies the task's row of the paper's Table 2, then the
+size preset, then the user's overrides, and `validate`s the result: every numeric setting in
+the range it declares, and the rules settings keep together (`config.rules`).
 """
 
 from __future__ import annotations
@@ -10,89 +9,20 @@ from __future__ import annotations
 from dataclasses import fields, replace
 from typing import Any
 
-from seqrank import config_rules as rules
-from seqrank.choices import (
-    RewardSignal,
-    check_path,
-)
-from seqrank.config_ranges import check_setting
+import seqrank.config.rules as rules
+from seqrank.choices import RewardSignal, check_path
+from seqrank.config.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
+from seqrank.config.ranges import check_setting
+from seqrank.config.roles import accepted_by
+from seqrank.config.train_config import SCALES, TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
-from seqrank.presets import BLOCK_SMALL_PRESET, SMALL_PRESET, table2_overrides
 from seqrank.scale import scale_for_device
-from seqrank.train_config import PRECISIONS as PRECISIONS
-from seqrank.train_config import SCALES as SCALES
-from seqrank.train_config import TrainConfig as TrainConfig
-
-# The settings a baseline run never reads: its results depend on the others only, so a
-# sweep plans it once whatever its variants do to these, and a report pools baseline runs
-# that differ in these alone.
-# Read only where questions are asked (sessions and what they cut, show and measure the
-# model on, reward learners, re-checks, QPA, MRN):
-ASKING_ONLY = frozenset(
-    {
-        "selection",
-        "record_states",
-        "heldout_pairs",
-        "parts",
-        "oversample",
-        "max_feedback",
-        "reward_batch",
-        "feedback_frequency",
-        "segment_length",
-        "episodes_kept",
-        "query_episodes",
-        "hybrid_replay",
-        "hybrid_episodes",
-        "overlap",
-        "crowd_weighting",
-        "annotators",
-        "meta_update_frequency",
-        "meta_loss_weight",
-        "augment",
-        "recheck_gain",
-        "recheck_twice_gain",
-        "path_unchecked",
-        "reward_learner",
-        *(f.name for f in fields(TrainConfig) if f.name.startswith(("surf_", "rime_"))),
-    }
-)
-# Read only when the reward model learns from labels (a no-feedback run's never does):
-REWARD_FITTING = frozenset(
-    {"reward_minibatch", "reward_epochs", "reward_stop_accuracy", "reward_stop_on"}
-)
-# Read only by pre-training, the critic reset after it and the reward model, none of which
-# the true-reward agent has:
-PRETRAINING_AND_REWARD_MODEL = REWARD_FITTING | {
-    "unsup_steps",
-    "knn_k",
-    "updates_after_reset",
-    "warm_start",
-    "reward_ensemble",
-    "reward_hidden",
-    "reward_layers",
-    "reward_lr",
-}
-
-
-REWARD_MODEL_SIZES = frozenset({"reward_ensemble", "reward_hidden", "reward_layers"})
-
-
-def unread_settings(reward: RewardSignal, start_from: bool = False) -> frozenset[str]:
-    """The settings a run that learns from `reward` never reads (none for a learned
-    reward); `start_from`: the run's own (a run started from a saved one checks the saved
-    reward model's sizes against its own)."""
-    if reward is RewardSignal.TRUE:
-        unread = ASKING_ONLY | PRETRAINING_AND_REWARD_MODEL
-        return unread - REWARD_MODEL_SIZES if start_from else unread
-    if reward is RewardSignal.NONE:  # (its untrained model is fit to nothing: no warm start)
-        return ASKING_ONLY | REWARD_FITTING | {"warm_start", "reward_lr"}
-    return frozenset()
 
 
 def resolve_config(task: str | None, scale: str, overrides: dict[str, Any]) -> TrainConfig:
     """Suite defaults, then Table 2, then the size preset, then what a replayed label file
-    fixes (`config_rules.recorded_values`), then the user's overrides, which must agree
+    fixes (`rules.recorded_values`), then the user's overrides, which must agree
     with the file. `task` None: the label file's, else the default; `scale` auto: paper on
     CUDA, small elsewhere (`scale.resolve_scale`, on the device the overrides name)."""
     if scale == "auto":
@@ -130,8 +60,9 @@ def config_differences(saved: TrainConfig, wanted: TrainConfig) -> list[str]:
 def validate(config: TrainConfig) -> None:
     """Raise SettingError naming the bad value and what is accepted."""
     for f in fields(config):
-        if f.type in ("int", "float"):
-            check_setting(f.name, str(f.type), getattr(config, f.name))
+        accepted = accepted_by(f)
+        if accepted is not None:
+            check_setting(f.name, accepted, getattr(config, f.name))
     suite = canonical_task(config.task)[0]
     if suite == "block" and config.backbone != "pebble":
         raise SettingError(
