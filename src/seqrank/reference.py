@@ -27,7 +27,8 @@ REFERENCE_FILE = Path(__file__).with_name("true_reward_reference.json")
 # true-reward run or that compute the same update otherwise, the random warm-up before it
 # learns, and the size preset. A new agent setting joins the key, so entries measured
 # without it no longer apply (`scripts/make_reference.py` measures them again).
-SAME_LEARNING = ("backbone", "path", "precision")  # pebble for every baseline; execution
+# the backbone: pebble in every baseline; path and precision: how the same update computes
+SAME_LEARNING = ("backbone", "path", "precision")
 BEYOND_THE_AGENT = ("scale", "seed_steps")
 REFERENCE_KEY = tuple(
     name
