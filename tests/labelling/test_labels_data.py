@@ -344,3 +344,25 @@ def test_bad_labelling_commands_name_the_problem_and_create_nothing(
     assert main([*args, *out]) == 2
     assert message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--methods", "root,foo"], "distinct schemes"),
+        (["--scheme", "root"], "drop --resume/--out"),
+    ],
+)
+def test_a_study_names_its_bad_settings_before_a_busy_port(
+    tmp_path, monkeypatch, capsys, args, message
+):
+    import socket
+
+    monkeypatch.chdir(tmp_path)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = str(busy.getsockname()[1])
+        assert main(["label", "study", "--participant", "p", "--port", port, *args]) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -137,8 +137,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             return _offline(args, say)
         if args.mode == "online":
             return _online(args, say, err)
-        _check_address(args)
-        return run_study(args, say)
+        return run_study(args, say)  # it checks the address after the settings
     except (ValueError, FileNotFoundError, FileExistsError) as problem:
         raise UsageError(problem_with_flags(problem, args)) from None
 

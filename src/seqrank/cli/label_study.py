@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.cli.label_page import (
+    check_address,
     finish,
     human_overrides,
     human_trainer,
@@ -74,6 +75,7 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
     if args.dry_run:
         say(f"settings valid for {', '.join(methods)} (dry run: nothing written)")
         return 0
+    check_address(args.host, args.port)  # the settings first: a wrong one outweighs a busy port
     lock = take_directory(participant_dir, "participant directory")
     try:
         _check_started_runs(participant_dir, configs)

@@ -30,7 +30,7 @@ MEANINGS = {
     "reward": "true: the dataset's own reward (the ceiling); learned: labels over its "
     "segments, a reward model fit to them, the dataset relabelled",
     "scheme": "learned: pairwise, sequential, root or ranked",
-    "teacher": "learned: who answers, as `seqrank train --teacher` takes it",
+    "teacher": "learned: who answers (the values train's --teacher takes)",
     "max_feedback": "learned: the questions asked in all",
     "segment_length": "learned: steps a segment",
     "session_questions": "learned: questions a session",
