@@ -177,7 +177,15 @@ def test_hybrid_batches_while_feedback_is_open_then_uniform_ones():
 
 def test_dqn_updates_from_hybrid_batches_too():
     """block:place learns with DQN; it samples through the same `BatchSource`."""
-    settings = DQNSettings(16, 2, 1e-3, 0.99, 0.005, 2, EpsilonSchedule())
+    settings = DQNSettings(
+        hidden=16,
+        layers=2,
+        lr=1e-3,
+        discount=0.99,
+        tau=0.005,
+        target_update_every=2,
+        epsilon=EpsilonSchedule(),
+    )
     agent = DQN(OBS, ACT, settings, torch.device("cpu"))
     source = Recording(numbered_buffer(400, 300), 0.25, 10)
     agent.update_from(source, 40, _gen(0))

@@ -111,7 +111,15 @@ def test_epsilon_schedule_of_d1():
 
 
 def test_dqn_explores_by_the_schedule_and_learns_a_one_step_bandit():
-    settings = DQNSettings(32, 2, 1e-2, 0.0, 1.0, 1, EpsilonSchedule(random_steps=0))
+    settings = DQNSettings(
+        hidden=32,
+        layers=2,
+        lr=1e-2,
+        discount=0.0,
+        tau=1.0,
+        target_update_every=1,
+        epsilon=EpsilonSchedule(random_steps=0),
+    )
     agent = DQN(3, 4, settings, torch.device("cpu"))
     generator = torch.Generator().manual_seed(0)
     obs = torch.zeros(64, 3)

@@ -37,8 +37,10 @@ class EpsilonSchedule:
         return max(self.floor, self.start * self.decay**decays)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DQNSettings:
+    """DQN's sizes and constants (keywords only: seven numbers in a row are easy to swap)."""
+
     hidden: int
     layers: int
     lr: float

@@ -41,13 +41,13 @@ def make_sac(config: TrainConfig, env: EnvShape, runtime: Runtime) -> SAC:
 
 def make_dqn(config: TrainConfig, env: EnvShape, device: torch.device) -> DQN:
     settings = DQNSettings(
-        config.hidden,
-        config.layers,
-        config.critic_lr,
-        config.discount,
-        config.tau,
-        config.target_update_every,
-        EpsilonSchedule(random_steps=config.seed_steps),
+        hidden=config.hidden,
+        layers=config.layers,
+        lr=config.critic_lr,
+        discount=config.discount,
+        tau=config.tau,
+        target_update_every=config.target_update_every,
+        epsilon=EpsilonSchedule(random_steps=config.seed_steps),
     )
     return DQN(env.obs_dim, env.act_dim, settings, device)
 
