@@ -39,6 +39,12 @@ def test_a_bad_setting_gets_the_same_error_as_seqrank_train(settings, named, tmp
     ("options", "named"),
     [
         ({"hidden": 64}, r"hidden is a setting of seqrank's own agent.*net_arch"),
+        ({"eval_every": 500}, r"SB3's EvalCallback: learn\(\.\.\., callback=\[feedback, Eval"),
+        ({"eval_episodes": 5}, "SB3's EvalCallback"),
+        ({"checkpoint_every": 500}, r"SB3's CheckpointCallback.*feedback\.save\(folder\)"),
+        ({"start_from": "run"}, r"a saved SB3 model: SAC\.load\(path, env=feedback\.env\)"),
+        ({"parts": ("clips",)}, r"study's parts.*SAC\.load\(path, env=feedback\.env\)"),
+        ({"meta_loss_weight": 1.0}, "MRN's meta update"),
         ({"learning_rate": 3e-4}, "'learning_rate' is a keyword of the SB3 model"),
         ({"bogus": 1}, "unknown setting 'bogus'; accepted: scheme, teacher"),
         ({"n_envs": 0}, "n_envs must be a whole number from 1"),

@@ -19,6 +19,12 @@ from seqrank.config import Role, TrainConfig, resolve_config, settings_of
 from seqrank.errors import SettingError, setting
 from seqrank.scale import resolve_scale
 
+# SB3's own callbacks in place of seqrank's evaluation, checkpoints and fine-tuning
+_EVAL = (
+    "learn(..., callback=[feedback, EvalCallback(eval_env, eval_freq=..., n_eval_episodes=...)]),"
+    " its eval_env the task itself, scored by the true reward"
+)
+_CONTINUE = "SAC.load(path, env=feedback.env), then its learn(..., callback=feedback)"
 # where a refused setting goes with Stable-Baselines3, or why it has no place there; the
 # settings named here are refused beside seqrank's own agent and loop
 ELSEWHERE = {
@@ -28,6 +34,18 @@ ELSEWHERE = {
     "reward": "a baseline that asks nothing: train the SB3 model on the environment itself",
     "warm_start": "not there: RIME's warm start fits the reward model in seqrank's own "
     "pre-training; pretrain=True trains the SB3 agent on the state-entropy reward only",
+    "eval_every": f"SB3's EvalCallback: {_EVAL}",
+    "eval_episodes": f"SB3's EvalCallback: {_EVAL}",
+    "checkpoint_every": "SB3's CheckpointCallback: learn(..., callback=[feedback, "
+    "CheckpointCallback(save_freq=..., save_path=..., save_replay_buffer=True)]), and "
+    "feedback.save(folder) for the feedback",
+    "start_from": f"a saved SB3 model: {_CONTINUE}",
+    "parts": "not there: the study's parts choose the clips of seqrank's own fine-tuning "
+    f"sessions; to fine-tune an SB3 agent start from its saved model, {_CONTINUE}",
+    "hybrid_replay": "not there: QPA's hybrid replay is seqrank's own agent's sampling",
+    "hybrid_episodes": "not there: QPA's hybrid replay is seqrank's own agent's sampling",
+    "meta_update_frequency": "not there: MRN's meta update wraps seqrank's own agent's update",
+    "meta_loss_weight": "not there: MRN's meta update wraps seqrank's own agent's update",
 }
 # what the SB3 model and its callbacks replace: seqrank's agent (and what it does for
 # feedback), its loop's evaluation and checkpoints
