@@ -277,6 +277,27 @@ BREAKS = (
         ("tests/agents/test_iql.py",),
     ),
     Break(
+        "iql: the target's larger critic taken (max, not min, of Q1' and Q2')",
+        "agents/iql.py",
+        "self.critic_target(obs, batch.action).amin(0)",
+        "self.critic_target(obs, batch.action).amax(0)",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: the critic loss of one critic only (the twin's second member never learns)",
+        "agents/iql.py",
+        "critic_loss = (q - target).pow(2).sum(0).mean()",
+        "critic_loss = (q - target).pow(2)[0].mean()",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
+        "iql: both critics read the first member's first layer (one network twice)",
+        "agents/iql.py",
+        "h = x @ first.permute(1, 0, 2).reshape(inputs, members * width)",
+        "h = x @ first[0].repeat(1, members)",
+        ("tests/agents/test_iql.py",),
+    ),
+    Break(
         "offline: a time limit taken for a terminal (no bootstrap at truncations)",
         "offline/train.py",
         "tensor(~dataset.terminations)",

@@ -23,11 +23,13 @@ import torch
 from seqrank.agents.iql import (
     IQL,
     IQLSettings,
+    TwinQ,
     advantage_weights,
     cosine_rate,
     expectile_loss,
     q_target,
 )
+from seqrank.agents.networks import mlp
 from seqrank.buffer import Batch
 
 OBS, ACT, ROWS = 3, 2, 5
@@ -61,12 +63,23 @@ def make_constant(net: torch.nn.Sequential, bias: float | tuple[float, ...]) -> 
         last.bias.copy_(torch.as_tensor(bias, dtype=torch.float32))
 
 
+def make_critics_constant(critic: TwinQ, biases: tuple[float, float]) -> None:
+    """Each of the two critics outputs its own bias: their last hidden layer is dead."""
+    with torch.no_grad():
+        critic.weights[-2].zero_()
+        critic.biases[-2].fill_(-1.0)
+        critic.biases[-1].copy_(torch.tensor(biases).reshape(2, 1, 1))
+
+
+def output_biases(critic: TwinQ) -> list[float]:
+    return critic.biases[-1].detach().flatten().tolist()
+
+
 def constant_agent(temperature: float) -> IQL:
     torch.manual_seed(0)
     agent = IQL(OBS, ACT, settings(temperature), torch.device("cpu"))
     for critic, biases in ((agent.critic, CRITIC_Q), (agent.critic_target, TARGET_Q)):
-        make_constant(critic.q1, biases[0])
-        make_constant(critic.q2, biases[1])
+        make_critics_constant(critic, biases)
     make_constant(agent.value, VALUE)
     make_constant(agent.actor.net, MEAN_BIAS)
     with torch.no_grad():
@@ -131,11 +144,9 @@ def test_one_update_matches_the_losses_and_steps_worked_out_by_hand(temperature)
     assert got["weight_clipped"] == (1.0 if temperature == 10.0 else 0.0)
     assert got["actor_loss"] == pytest.approx(expected["actor_loss"], rel=1e-5)
     assert got["critic_loss"] == pytest.approx(expected["critic_loss"], rel=1e-5)
-    target_biases = [
-        float(agent.critic_target.q1[-1].bias.detach()),
-        float(agent.critic_target.q2[-1].bias.detach()),
-    ]
-    np.testing.assert_allclose(target_biases, expected["target_new"], atol=1e-6)
+    np.testing.assert_allclose(
+        output_biases(agent.critic_target), expected["target_new"], atol=1e-6
+    )
 
 
 def test_the_weights_of_the_clipped_case_are_the_clip_and_the_unclipped_ones_are_not():
@@ -201,3 +212,25 @@ def test_state_dict_round_trip_gives_the_same_next_update():
     second.update(batch())
     assert first.last_metrics == second.last_metrics
     assert second.updates == 2
+
+
+def test_the_twin_critic_is_two_mlps_drawn_as_two_separate_networks_would_be():
+    torch.manual_seed(5)
+    separate = [mlp(OBS + ACT, 8, 2, 1) for _ in range(2)]
+    torch.manual_seed(5)
+    twin = TwinQ(OBS, ACT, 8, 2)
+    obs, action = torch.randn(7, OBS), torch.rand(7, ACT) * 2 - 1
+    got = twin(obs, action)
+    assert got.shape == (2, 7, 1)
+    for member, net in enumerate(separate):
+        torch.testing.assert_close(got[member], net(torch.cat([obs, action], -1)))
+    # the members differ: a twin that ran one network twice would not
+    assert not torch.allclose(got[0], got[1])
+
+
+def test_a_checkpoint_of_two_separate_critics_is_refused_in_words():
+    agent = constant_agent(3.0)
+    state = agent.state_dict()
+    state["critic"] = {"q1.0.weight": torch.zeros(1), "q2.0.weight": torch.zeros(1)}
+    with pytest.raises(ValueError, match="two networks"):
+        agent.load_state_dict(state)
