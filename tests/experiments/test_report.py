@@ -387,3 +387,37 @@ def test_a_baseline_run_once_per_variant_counts_each_seed_once(tmp_path):
         "left out true_q200_seed0, true_q200_seed1"
     )
     assert note in report["notes"] and f"Note: {note}." in text
+
+
+def test_a_sweeps_baselines_left_under_an_earlier_versions_names_count_once(tmp_path):
+    """An earlier version planned each baseline once per variant; the sweep now plans one
+    per seed (`sweep.json`), took one directory over and ran the no-feedback baseline again
+    (its pre-training differed): the directories left count neither a second time nor as
+    another method."""
+    runs = tmp_path / "runs" / "walker_walk"
+    for seed, final in enumerate([300.0, 330.0]):
+        fake_run(runs / f"root_seed{seed}", "walker_walk", "root", seed, [100.0, final])
+        true = ("walker_walk", "root", seed, [100.0, 600.0])
+        fake_run(runs / f"true-reward_seed{seed}", *true, reward="true")
+        floor = ("walker_walk", "root", seed, [50.0, 60.0])
+        fake_run(runs / f"no-feedback_seed{seed}", *floor, reward="none", unsup_steps=900)
+    fake_run(
+        runs / "true-reward_q20_seed0", "walker_walk", "root", 0, [100.0, 900.0], reward="true"
+    )
+    old = ("walker_walk", "root", 0, [50.0, 10.0])
+    fake_run(runs / "no-feedback_q10_seed0", *old, reward="none", unsup_steps=600)
+    fake_run(runs / "no-feedback_q20_seed0", *old, reward="none", unsup_steps=600)
+    names = [f"walker_walk/{d.name}" for d in runs.iterdir() if "_q" not in d.name]
+    state = {"name": "grid", "runs": [{"name": name, "state": "finished"} for name in names]}
+    (tmp_path / "sweep.json").write_text(json.dumps(state))
+
+    report, cells, text = report_of(tmp_path)
+    assert [m for m in report["methods"] if m != "root"] == ["no-feedback", "true-reward"]
+    assert cells[("walker_walk", "true-reward")]["mean"] == 600.0
+    assert cells[("walker_walk", "no-feedback")]["n"] == 2
+    note = (
+        "left out walker_walk/no-feedback_q10_seed0, walker_walk/no-feedback_q20_seed0, "
+        "walker_walk/true-reward_q20_seed0: baseline runs an earlier version of the sweep made "
+        "under another name, which it now plans and runs under its own"
+    )
+    assert report["notes"] == [note] and f"Note: {note}." in text

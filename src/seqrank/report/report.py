@@ -35,6 +35,7 @@ from seqrank.report.stats import (
     probability_of_improvement,
     stratified_bootstrap_ci,
 )
+from seqrank.report.sweep_plan import without_earlier_baselines
 
 SCHEME_ORDER = ("pairwise", "sequential", "root", "ranked")
 TRUE_REWARD = RewardSignal.TRUE.method
@@ -103,7 +104,8 @@ def build_report(
     folder: Path, repetitions: int = 2000, seed: int = 0, include_unfinished: bool = False
 ) -> dict[str, Any]:
     runs = collect_runs(folder)
-    counted, left_out = counted_runs(runs, include_unfinished, folder)
+    planned, earlier = without_earlier_baselines(runs, folder)
+    counted, left_out = counted_runs(planned, include_unfinished, folder)
     names, notes = split_by_settings(counted, method_names(counted))
     counted, repeats = one_run_per_seed(counted, names)
     rng = np.random.default_rng(seed)
@@ -136,7 +138,7 @@ def build_report(
             _per_method(cells, tasks, methods, lambda r: r.score), methods, repetitions, rng
         ),
         "bootstrap": {"repetitions": repetitions, "seed": seed},
-        "notes": notes + repeats,
+        "notes": earlier + notes + repeats,
         "_runs": counted,
         "_names": names,
     }
