@@ -17,9 +17,9 @@ Two of the names are values:
   take them: pairwise (the baseline), sequential, root and ranked;
 - `__version__`: the package's version, as `seqrank --version` prints it.
 
-Names are loaded on first use, so `import seqrank` stays light (no torch). It registers
-seqrank's tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`,
-`seqrank.registration`).
+Names are loaded on first use, so `import seqrank` stays light (no torch, no Gymnasium).
+It registers seqrank's tasks with Gymnasium (`gymnasium.make("seqrank/walker_walk-v0")`,
+`seqrank.registration`), at once or when Gymnasium is first imported.
 
 Examples:
     >>> import seqrank
@@ -34,10 +34,10 @@ from __future__ import annotations
 from importlib import import_module
 from typing import Any
 
-from seqrank.registration import register_tasks
+from seqrank.registration import register_on_import
 
 __version__ = "0.1.0"
-register_tasks()
+register_on_import()
 
 _PUBLIC = {
     "run_scheme": "seqrank.api",

@@ -2,6 +2,10 @@
 render_mode="rgb_array")` after `import seqrank` (or, with only gymnasium imported,
 `gymnasium.make("seqrank:seqrank/walker_walk-v0")`, which imports seqrank first).
 
+`import seqrank` does not import Gymnasium (about 90 ms): it registers the ids at once when
+Gymnasium is imported already, else right after Gymnasium's first import
+(`register_on_import`).
+
 Ids: `seqrank/<domain>_<task>-v0` for every DMControl task, `seqrank/<name>-v3` for every
 Meta-World v3 MT1 task, `seqrank/block-place-v0`. The names are those of the pinned
 dm-control and metaworld (a test compares them with the installed suites); listing them
@@ -9,6 +13,13 @@ here keeps `import seqrank` free of the simulators.
 """
 
 from __future__ import annotations
+
+import importlib.abc
+import importlib.util
+import sys
+from importlib.machinery import ModuleSpec
+from types import ModuleType
+from typing import Any
 
 NAMESPACE = "seqrank"
 ENTRY_POINT = "seqrank.envs.gymnasium_task:make_task"
@@ -135,3 +146,43 @@ def register_tasks() -> None:
     for env_id, task in gymnasium_ids().items():
         if env_id not in gymnasium.registry:
             gymnasium.register(env_id, entry_point=ENTRY_POINT, kwargs={"task": task})
+
+
+def register_on_import() -> None:
+    """Register the ids now if Gymnasium is imported, else once it is (a finder on
+    `sys.meta_path` that runs `register_tasks` after Gymnasium's module has run)."""
+    if "gymnasium" in sys.modules:
+        register_tasks()
+    elif not any(isinstance(finder, _AfterGymnasium) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _AfterGymnasium())
+
+
+class _AfterGymnasium(importlib.abc.MetaPathFinder):
+    """Finds Gymnasium as the other finders do, its loader wrapped to register the ids."""
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> ModuleSpec | None:
+        if name != "gymnasium":
+            return None
+        sys.meta_path.remove(self)  # once, and not for the search below
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _ThenRegister(spec.loader)
+        return spec
+
+
+class _ThenRegister(importlib.abc.Loader):
+    """Gymnasium's own loader, then `register_tasks`; anything else asked of it (resource
+    readers, ...) is the wrapped loader's."""
+
+    def __init__(self, loader: importlib.abc.Loader):
+        self.loader = loader
+
+    def create_module(self, spec: ModuleSpec) -> ModuleType | None:
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        self.loader.exec_module(module)
+        register_tasks()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.loader, name)

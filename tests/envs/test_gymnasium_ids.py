@@ -67,3 +67,15 @@ def test_a_made_task_names_its_episode_length_in_its_spec():
     assert steps == 1000 and again.spec.max_episode_steps == 1000
     env.close()
     again.close()
+
+
+def test_import_seqrank_leaves_gymnasium_unimported_and_its_import_registers_the_ids():
+    light = "import seqrank, sys; assert 'gymnasium' not in sys.modules"
+    later = "import gymnasium; print(gymnasium.make('seqrank/cartpole_swingup-v0').spec.id)"
+    done = subprocess.run(
+        [sys.executable, "-c", f"{light}; {later}"], capture_output=True, text=True
+    )
+    assert done.stdout.strip() == "seqrank/cartpole_swingup-v0", done.stderr
+    first = "import gymnasium, seqrank; print('seqrank/walker_walk-v0' in gymnasium.registry)"
+    done = subprocess.run([sys.executable, "-c", first], capture_output=True, text=True)
+    assert done.stdout.strip() == "True", done.stderr
