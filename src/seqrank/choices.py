@@ -46,6 +46,7 @@ class CrowdWeighting(StrEnum):
 
     RELIABILITY = "reliability"  # each label the probability that its annotator is right
     NONE = "none"  # every answer as given
+    DROP = "drop"  # a flagged annotator's labels left out (results/crowd/, issue 49)
 
 
 class StopOn(StrEnum):

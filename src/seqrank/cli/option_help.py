@@ -48,8 +48,10 @@ MEANINGS = {
     "oversample": "disagreement and entropy: candidates per question",
     "episodes_kept": "recent episodes that segments are cut from",
     "overlap": "a crowd's share of answers also asked of a second member, for agreement (0 to 1)",
+    "overlap_until": "a crowd: every answer of a member with fewer than N answers shared with "
+    "another member is asked again (evidence for the flags early; 0: the overlap only)",
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
-    "is right) or none (answers as given)",
+    "is right), drop (a flagged annotator's labels left out) or none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "
     "address of their own; ASCII letters, digits, '-', '_' and '.', starting with a letter, "
     "'operator' reserved)",

@@ -257,6 +257,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             heldout_segments=args.heldout_segments,
             net=RewardNet(epochs=args.reward_epochs),
             window_steps=args.window_steps,
+            overlap_until=args.overlap_until,
         )
         grid = open_grid(args.pool, settings, args.out)
     except ValueError as problem:

@@ -8,7 +8,7 @@ import argparse
 import os
 from pathlib import Path
 
-from seqrank.choices import RewardLearner
+from seqrank.choices import CrowdWeighting, RewardLearner
 from seqrank.cli.options import int_between, names, positive
 from seqrank.rewardbench.cells import AUGMENTS, ORDERS, STOPS
 
@@ -61,10 +61,11 @@ def add_grid_axes(grid: argparse.ArgumentParser) -> None:
     )
     grid.add_argument(
         "--weightings",
-        type=names(["reliability", "none"], "weighting"),
+        type=names([w.value for w in CrowdWeighting], "weighting"),
         default=["none"],
         help="a crowd teacher's labels: reliability (each the probability that its member "
-        "is right), none (as answered), comma-separated (none)",
+        "is right), drop (a flagged member's labels left out), none (as answered), "
+        "comma-separated (none)",
     )
 
 
@@ -95,6 +96,15 @@ def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
         "steps k*N to (k+1)*N - 1, and each budget is scored on the next window's episodes, "
         "with no held-out split (off: every session on the training episodes, scored on "
         "the held-out ones)",
+    )
+    grid.add_argument(
+        "--overlap-until",
+        type=int_between(0, 10_000),
+        default=0,
+        metavar="N",
+        help="a crowd teacher's adaptive overlap: every answer of a member with fewer than N "
+        "answers shared with another member is asked again of someone else (0: a share 0.1 "
+        "of the answers only)",
     )
     grid.add_argument(
         "--reward-epochs",

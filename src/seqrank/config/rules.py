@@ -70,7 +70,9 @@ def check_crowd(config: TrainConfig) -> None:
         check_annotator_names(config.annotators, setting("annotators"))
     if kind == "crowd" or config.annotators:
         return
-    crowd_only = [f for f in fields(config) if f.name in ("overlap", "crowd_weighting")]
+    crowd_only = [
+        f for f in fields(config) if f.name in ("overlap", "overlap_until", "crowd_weighting")
+    ]
     given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
     if given:
         names = " and ".join(setting(name) for name in given)

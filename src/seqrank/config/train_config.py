@@ -174,6 +174,9 @@ class TrainConfig:
     # answers also asked of a second person, and how the labels count in reward training
     # (weighting lost accuracy: results/crowd/)
     overlap: float = declare(Role.FEEDBACK, 0.1, SHARE)
+    # every answer of a member with fewer answers than this shared with someone else is
+    # asked again (`feedback.overlap`: evidence for the flags early); 0: `overlap` only
+    overlap_until: int = declare(Role.FEEDBACK, 0, Count(low=0, high=10_000))
     crowd_weighting: CrowdWeighting = declare(Role.FEEDBACK, CrowdWeighting.NONE)
     # a team at the labelling page (`label online`): name,name,...
     annotators: str = declare(Role.FEEDBACK, "")

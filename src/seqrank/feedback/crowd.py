@@ -23,6 +23,7 @@ import numpy as np
 
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
+from seqrank.feedback.overlap import adaptive_picks
 from seqrank.feedback.schemes import (
     Ask,
     SessionRecord,
@@ -183,12 +184,16 @@ def overlap_picks(
 
 
 class CrowdSource:
-    """A simulated crowd: scripted members, each answering its chain, at its own pace."""
+    """A simulated crowd: scripted members, each answering its chain, at its own pace.
+    `overlap_until` N: every answer of a member with fewer than N answers shared with
+    someone else is asked again (`seqrank.feedback.overlap`); 0: a share `overlap` only."""
 
-    def __init__(self, members: Sequence[CrowdMember], overlap: float):
+    def __init__(self, members: Sequence[CrowdMember], overlap: float, overlap_until: int = 0):
         if not members:
             raise ValueError("a crowd needs at least one member")
         self.members, self.overlap = tuple(members), overlap
+        self.overlap_until = overlap_until
+        self.shared: dict[str, int] = {}  # each member's answers shared with others so far
 
     def has_session(self, session: int) -> bool:
         return True
@@ -230,10 +235,24 @@ class CrowdSource:
         names = [m.name for m in self.members]
         rng = rngs[0]
         opinions = []
-        for k, other in overlap_picks(record, len(names), self.overlap, rng):
-            asked, owner = record.answers[k], names.index(record.crowd.answered_by[k])
-            person = other if other < owner else other + 1
+        for k, person in self._picks(record, rng):
+            asked = record.answers[k]
             question = Question(k, asked.first, asked.second, asked.question.first_is_defender)
             answer = asker(person, rng)(asked.first, asked.second)
             opinions.append(SecondOpinion(AnsweredQuestion(question, answer), names[person]))
         return opinions
+
+    def _picks(self, record: SessionRecord, rng: np.random.Generator) -> list[tuple[int, int]]:
+        """(answer index, the second person's member index): adaptive, or as before."""
+        assert record.crowd is not None
+        names = [m.name for m in self.members]
+        if self.overlap_until:
+            picks = adaptive_picks(
+                record, names, self.shared, self.overlap_until, self.overlap, rng
+            )
+            return [(k, names.index(second)) for k, second in picks]
+        fixed = []
+        for k, other in overlap_picks(record, len(names), self.overlap, rng):
+            owner = names.index(record.crowd.answered_by[k])
+            fixed.append((k, other if other < owner else other + 1))
+        return fixed

@@ -11,6 +11,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
 from seqrank.feedback.crowd_record import CrowdRecord
+from seqrank.feedback.peer_reliability import estimate_from_peers
 from seqrank.feedback.reliability import (
     MODEL,
     Reliability,
@@ -28,7 +29,10 @@ CrowdAnswer = tuple[int, int, str, str, float | None]
 
 class LabelStore:
     """`weighting` "reliability": a crowd's labels train as the probability that their
-    annotator is right (`seqrank.feedback.reliability`); "none": as answered."""
+    annotator is right; "drop": the labels of a flagged annotator (their answers and what
+    the closure infers from them) are left out of reward training; "none": as answered.
+    Reliability is estimated from the other people's answers
+    (`seqrank.feedback.peer_reliability`)."""
 
     def __init__(self, weighting: str = "none") -> None:
         self.segments: list[np.ndarray] = []  # (H, obs+act) each
@@ -116,14 +120,33 @@ class LabelStore:
     def reliability(self) -> dict[str, Reliability]:
         """A crowd's annotators' reliability from every answer so far (empty for one
         teacher); the reward model's own, as a voter, is left out."""
+        return estimate_from_peers(evidence_rows(self.crowd_answers))
+
+    def reliability_with_model(self) -> dict[str, Reliability]:
+        """The same from `seqrank.feedback.reliability`'s estimator, the reward model a
+        voter (the estimator before issue 49; kept for the benchmark's comparison)."""
         estimates = estimate_reliability(evidence_rows(self.crowd_answers))
         return {name: r for name, r in estimates.items() if name != MODEL}
+
+    def kept(self) -> list[bool]:
+        """Which pairs reward training fits: all, or (`drop`) all but a flagged
+        annotator's."""
+        if self.weighting != "drop" or not any(self.annotator):
+            return [True] * len(self.labels)
+        flagged = {name for name, r in self.reliability().items() if r.flagged}
+        kept = [name not in flagged for name in self.annotator]
+        return kept if any(kept) else [True] * len(kept)  # (all flagged: none trusted more)
+
+    def asked_mask(self) -> torch.Tensor:
+        """Of the pairs `tensors` gives, which were asked (not inferred)."""
+        kept = self.kept()
+        return torch.tensor([not i for i, k in zip(self.inferred, kept, strict=True) if k])
 
     def training_labels(self) -> list[float]:
         """The labels reward training fits: as answered, or (a crowd, weighted by
         reliability) each the probability that it is right."""
         if self.weighting != "reliability" or not any(self.annotator):
-            return self.labels
+            return list(self.labels)
         trust = self.reliability()
         return [
             soft_label(label, trust[name]) if name in trust else label
@@ -143,12 +166,14 @@ class LabelStore:
         With `last`, only the most recent `last` pairs and just the segments they use.
         """
         rows = slice(-last, None) if last else slice(None)
-        first, second = np.asarray(self.first[rows]), np.asarray(self.second[rows])
+        kept = np.asarray(self.kept()[rows], dtype=bool)
+        first, second = np.asarray(self.first[rows])[kept], np.asarray(self.second[rows])[kept]
         used, inverse = np.unique(np.concatenate([first, second]), return_inverse=True)
         segments = torch.as_tensor(np.stack([self.segments[i] for i in used]), device=device)
         first_t = torch.as_tensor(inverse[: len(first)], dtype=torch.long, device=device)
         second_t = torch.as_tensor(inverse[len(first) :], dtype=torch.long, device=device)
-        labels = torch.as_tensor(self.training_labels()[rows], dtype=torch.float32, device=device)
+        trained = np.asarray(self.training_labels()[rows], dtype=np.float32)[kept]
+        labels = torch.as_tensor(trained, device=device)
         return segments, first_t, second_t, labels
 
     def state_dict(self) -> dict[str, Any]:

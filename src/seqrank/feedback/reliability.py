@@ -66,10 +66,12 @@ class Reliability:
     answers: int  # strict answers it rests on (on pairs with another opinion)
     overlaps: int  # of them, on pairs somebody else answered too
     agreement: float | None  # share of those agreeing with the other answers (None: none)
+    flag_below: float = FLAG_BELOW  # the estimator's flag rule
+    flag_after: int = FLAG_AFTER
 
     @property
     def flagged(self) -> bool:
-        return self.answers >= FLAG_AFTER and self.estimate < FLAG_BELOW
+        return self.answers >= self.flag_after and self.estimate < self.flag_below
 
 
 def estimate_reliability(evidence: Sequence[Evidence]) -> dict[str, Reliability]:
@@ -95,7 +97,7 @@ def estimate_reliability(evidence: Sequence[Evidence]) -> dict[str, Reliability]
     p: np.ndarray = np.full(len(names), START)
     counted: np.ndarray = np.zeros(len(names))
     for _ in range(ITERATIONS if len(informative) else 0):
-        truth_first = _posterior(len(pairs), item, who, said, p)
+        truth_first = posterior(len(pairs), item, who, said, p)
         right = np.where(said, truth_first[item], 1.0 - truth_first[item])
         counted = np.bincount(who[counts], weights=right[counts], minlength=len(names))
         p = np.where(answers > 0, counted / np.maximum(answers, 1), START)
@@ -117,7 +119,7 @@ def _with_model_votes(evidence: Sequence[Evidence]) -> list[Evidence]:
     return [*evidence, *votes]
 
 
-def _posterior(
+def posterior(
     pairs: int, item: np.ndarray, who: np.ndarray, said: np.ndarray, p: np.ndarray
 ) -> np.ndarray:
     """P(first preferred | the pair's opinions) of every pair, from a prior of 1/2 (sums
@@ -142,7 +144,7 @@ def _summary(
 ) -> Reliability:
     right, n = float(counted[k]), int(answers[k])
     posterior = beta_distribution(right + 1.0, n - right + 1.0)
-    agreeing, overlapping = _agreement(k, who, item, said, model)
+    agreeing, overlapping = agreement(k, who, item, said, model)
     return Reliability(
         name,
         (right + 1.0) / (n + 2.0),
@@ -154,7 +156,7 @@ def _summary(
     )
 
 
-def _agreement(
+def agreement(
     k: int, who: np.ndarray, item: np.ndarray, said: np.ndarray, model: int
 ) -> tuple[int, int]:
     """(agreeing, compared): annotator k's answers on pairs another person answered (the

@@ -9,15 +9,16 @@ from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
 
-def make_source(teacher: str, overlap: float = 0.1) -> FeedbackSource:
+def make_source(teacher: str, overlap: float = 0.1, overlap_until: int = 0) -> FeedbackSource:
     """The feedback source a `--teacher` value stands for; ValueError for `human` (it
     needs the labelling page) and for values `parse_teacher` refuses. `overlap`: the
-    share of a crowd's answers also asked of a second member."""
+    share of a crowd's answers also asked of a second member; `overlap_until`: every
+    answer of a member with fewer shared answers than this (`seqrank.feedback.overlap`)."""
     spec = parse_teacher(teacher)
     if spec.kind == "crowd":
         from seqrank.feedback.crowd import CrowdSource
 
-        return CrowdSource(spec.members, overlap)
+        return CrowdSource(spec.members, overlap, overlap_until)
     if spec.kind == "replay":
         from seqrank.feedback.replay import ReplaySource
 

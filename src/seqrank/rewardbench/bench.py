@@ -93,6 +93,7 @@ class BenchSettings:
     heldout_segments: int = 300
     net: RewardNet = RewardNet()
     window_steps: int | None = None  # a session per window of the pool's run (`windows.py`)
+    overlap_until: int = 0  # a crowd's adaptive overlap (`seqrank.feedback.overlap`)
 
     def __post_init__(self) -> None:
         if not self.budgets or list(self.budgets) != sorted(set(self.budgets)):
@@ -196,7 +197,10 @@ class _CellRun:
         self.model = RewardModel(
             net.ensemble, features, net.hidden, net.layers, net.lr, torch.device("cpu")
         )
-        self.source = source if source is not None else make_source(cell.teacher)
+        until = settings.overlap_until
+        if source is None:
+            source = make_source(cell.teacher, overlap_until=until)
+        self.source = source
         self.plan = _plan(cell, settings)
         # the learner's own stream (SURF's crops and unlabelled batches): the training
         # shuffles stay those of the plain cell of the same scheme and seed
@@ -233,7 +237,7 @@ class _CellRun:
         seed = [cell.seed, 3, self.session]
         seen = self.episodes.seen(self.session)
         give_unlabelled(self.learner, seen, length, tally.asked, seed)
-        asked = torch.tensor([not inferred for inferred in self.labels.inferred])
+        asked = self.labels.asked_mask()
         fit = self.model.train(
             *self.labels.tensors(torch.device("cpu")),
             net.epochs,
@@ -320,10 +324,12 @@ def _row(
 
 def _crowd_measures(labels: LabelStore, tally: _Tally) -> dict[str, Any]:
     """A crowd's: the time its people spent (sessions side by side, and added up), and
-    each member's reliability estimate beside their true error rate so far."""
+    each member's reliability estimate beside their true error rate so far (and the
+    estimate with the reward model as a voter, the estimator before issue 49's)."""
     if not labels.crowd_answers:
         return {}
-    members = {}
+    members: dict[str, dict[str, Any]] = {}
+    with_model = labels.reliability_with_model()
     for name, found in labels.reliability().items():
         wrong = [
             (answer == "first") != (labels.segment_returns[f] > labels.segment_returns[s])
@@ -334,7 +340,14 @@ def _crowd_measures(labels: LabelStore, tally: _Tally) -> dict[str, Any]:
             "estimate": found.estimate, "low": found.low, "high": found.high,
             "answers": found.answers, "flagged": found.flagged,
             "true_error_rate": float(np.mean(wrong)) if wrong else None,
+            "overlaps": found.overlaps,
         }  # fmt: skip
+        if name in with_model:
+            old = with_model[name]
+            members[name]["with_model"] = {
+                "estimate": old.estimate, "low": old.low, "high": old.high,
+                "answers": old.answers, "flagged": old.flagged,
+            }  # fmt: skip
     return {
         "crowd_minutes": tally.seconds / 60.0,
         "person_minutes": tally.person_seconds / 60.0,

@@ -60,7 +60,7 @@ class RewardLearning:
         segments, first, second, labels = self.labels.tensors(self.model.device)
         counted = None  # the pairs the early stop counts: every pair, or the asked ones
         if s.stop_on == "asked":
-            counted = torch.tensor([not inferred for inferred in self.labels.inferred])
+            counted = self.labels.asked_mask()
         return self.model.train(
             segments,
             first,

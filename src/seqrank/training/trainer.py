@@ -82,7 +82,11 @@ class Trainer:
         self.replay = ReplayBuffer(kept + config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore(config.crowd_weighting.value)
-        self.source = source if source is not None else make_source(config.teacher, config.overlap)
+        self.source = (
+            source
+            if source is not None
+            else make_source(config.teacher, config.overlap, config.overlap_until)
+        )
         self.source.check_compatible(config.task, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
