@@ -3,14 +3,15 @@
 sizes (observations 39, actions 4), two hidden layers of 256, batch 256, one torch thread.
 Rounds interleave the variants (before, after, before, after, ...) so that a machine whose
 load changes treats both alike; each round times `--updates` updates of each, and the
-medians over rounds are printed, with the CPU (model, avx2 / avx512f / avx512_bf16) and
+medians over rounds are printed (and the median of each round's ratio: the load a round
+ran under cancels in it), with the CPU (model, avx2 / avx512f / avx512_bf16) and
 torch's version.
 
 Before timing, both agents start from the same seed and take the same batches for
 `--check` updates; the largest relative difference of any logged loss or statistic between
 them is printed: a change that only restructures the update keeps it at rounding (~1e-6).
 
-    python scripts/iql_bench.py --before 83db08d --rounds 9 --updates 100
+    python scripts/iql_bench.py --before 83db08d --rounds 60 --updates 10
 """
 
 from __future__ import annotations
@@ -135,6 +136,11 @@ def main() -> None:
         "before": args.before,
         "ms_per_update": {name: round(m, 3) for name, m in medians.items()},
         "speedup": round(medians["before"] / medians["after"], 3),
+        # each round's before / after, paired: the load a round ran under cancels
+        "paired_speedup_median": round(
+            statistics.median(b / a for b, a in zip(times["before"], times["after"], strict=True)),
+            3,
+        ),
         "largest_relative_difference": difference,
         "rounds": args.rounds,
         "updates_per_round": args.updates,

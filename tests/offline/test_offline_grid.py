@@ -1,0 +1,171 @@
+"""scripts/offline_grid.py at test sizes: a dataset made, every arm's IQL run, a report whose
+numbers are the runs' own, finished runs left alone, a run without its summary finished
+from its checkpoint, and the SAC and dataset commands of a medium-replay grid valid
+`seqrank` command lines."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from seqrank.cli import build_parser
+from support.offline import LINE, write_dataset
+
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "offline_grid.py"
+GRID = f"""
+tasks = ["{LINE}"]
+seeds = 2
+questions = [6]
+schemes = ["pairwise", "root"]
+[dataset]
+sources = ["random"]
+episodes = 12
+[offline]
+steps = 20
+eval_every = 10
+eval_episodes = 1
+hidden = 16
+batch = 16
+segment_length = 10
+session_questions = 6
+device = "cpu"
+"""
+
+
+def load_script():
+    spec = importlib.util.spec_from_file_location("offline_grid", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["offline_grid"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def grid_module():
+    return load_script()
+
+
+@pytest.fixture(scope="module")
+def finished_grid(grid_module, tmp_path_factory):
+    root = tmp_path_factory.mktemp("grid")
+    (root / "grid.toml").write_text(GRID)
+    # the line task renders no clips, which `seqrank dataset make` records: made here
+    write_dataset(grid_module.Layout(root / "out").dataset(LINE), episodes=12, seed=0)
+    code = grid_module.main([str(root / "grid.toml"), "--out", str(root / "out")])
+    assert code == 0
+    return root
+
+
+def summaries(out: Path) -> dict[str, dict]:
+    return {
+        path.parent.name: json.loads(path.read_text())
+        for path in sorted((out / "runs").rglob("summary.json"))
+    }
+
+
+def test_every_arm_and_seed_runs_on_the_dataset_made(finished_grid):
+    out = finished_grid / "out"
+    assert (out / "datasets").is_dir() and len(list((out / "datasets").iterdir())) == 1
+    runs = summaries(out)
+    arms = ["true", "pairwise-q6", "root-q6"]
+    assert sorted(runs) == sorted(f"{arm}_seed{seed}" for arm in arms for seed in (0, 1))
+    for name, summary in runs.items():
+        assert summary["steps"] == 20 and summary["seed"] == int(name[-1])
+        learned = not name.startswith("true")
+        assert summary["reward"] == ("learned" if learned else "true")
+        if learned:
+            assert summary["max_feedback"] == 6 and summary["scheme"] == name.split("-")[0]
+
+
+def test_the_report_gives_each_arms_mean_of_its_runs_final_returns(finished_grid):
+    out = finished_grid / "out"
+    report = json.loads((out / "report.json").read_text())
+    runs = summaries(out)
+    assert report["missing"] == []
+    for row in report["rows"]:
+        finals = [runs[f"{row['arm']}_seed{s}"]["final_eval_return"] for s in (0, 1)]
+        assert row["seeds"] == [0, 1]
+        assert row["return"]["values"] == pytest.approx(finals)
+        mean, low, high = row["return"]["mean"]
+        assert mean == pytest.approx(np.mean(finals))
+        # two seeds: the bootstrap draws either run twice or both once
+        assert low == pytest.approx(min(finals)) and high == pytest.approx(max(finals))
+        assert row["return"]["iqm"][0] == pytest.approx(np.mean(finals))  # IQM of two
+    assert "| root-q6 | 2 |" in (out / "report.md").read_text()
+
+
+def test_a_second_call_leaves_finished_runs_alone_and_finishes_a_stopped_one(
+    grid_module, finished_grid, capsys
+):
+    out = finished_grid / "out"
+    stopped = out / "runs" / next((out / "runs").iterdir()).name / "root-q6_seed1"
+    before = {p: p.stat().st_mtime_ns for p in (out / "runs").rglob("summary.json")}
+    summary = json.loads((stopped / "summary.json").read_text())
+    (stopped / "summary.json").unlink()  # as if stopped after its last checkpoint
+    code = grid_module.main([str(finished_grid / "grid.toml"), "--out", str(out)])
+    assert code == 0
+    said = capsys.readouterr().out
+    assert said.count("done IQL") == 1 and "root-q6 seed 1" in said
+    again = json.loads((stopped / "summary.json").read_text())
+    assert again["final_eval_return"] == summary["final_eval_return"]
+    for path, mtime in before.items():
+        if path.parent != stopped:
+            assert path.stat().st_mtime_ns == mtime
+
+
+def test_a_failed_run_is_reported_and_the_grid_goes_on(grid_module, tmp_path, capsys):
+    (tmp_path / "grid.toml").write_text(GRID.replace("steps = 20", "steps = 0"))
+    write_dataset(grid_module.Layout(tmp_path / "out").dataset(LINE), episodes=12, seed=0)
+    code = grid_module.main([str(tmp_path / "grid.toml"), "--out", str(tmp_path / "out"),
+                             "--stage", "runs"])  # fmt: skip
+    said = capsys.readouterr().out
+    assert code == 1 and said.count("FAILED IQL") == 6
+    assert "Not finished yet: 6 runs." in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_a_medium_replay_grid_plans_valid_sac_and_dataset_commands(grid_module, tmp_path):
+    grid_file = tmp_path / "grid.toml"
+    grid_file.write_text(
+        'tasks = ["button-press-topdown"]\n[dataset]\nruns = 3\nrun_steps = 100000\n'
+        'run_settings = { scale = "small" }\n'
+    )
+    grid, layout = grid_module.Grid.read(grid_file), grid_module.Layout(tmp_path / "out")
+    sac = grid_module.sac_argv(grid, layout, "button-press-topdown", 2)
+    parsed = build_parser().parse_args(sac)
+    assert parsed.steps == 100000 and parsed.seed == 2 and parsed.episodes_kept == 200
+    assert parsed.reward == "true" and parsed.scale == "small"
+    make = grid_module.dataset_argv(grid, layout, "button-press-topdown")
+    parsed = build_parser().parse_args(make)
+    assert parsed.out == str(layout.dataset("button-press-topdown"))
+    assert parsed.episodes == 600
+    assert parsed.source == [f"run:{layout.sac('button-press-topdown', s)}" for s in range(3)]
+    (layout.sac("button-press-topdown", 1)).mkdir(parents=True)
+    (layout.sac("button-press-topdown", 1) / "config.json").write_text("{}")
+    assert grid_module.sac_argv(grid, layout, "button-press-topdown", 1)[:2] == [
+        "train",
+        "--resume",
+    ]
+
+
+def test_a_played_dataset_is_made_by_the_sources_named(grid_module, tmp_path):
+    (tmp_path / "grid.toml").write_text(GRID)
+    grid, layout = grid_module.Grid.read(tmp_path / "grid.toml"), grid_module.Layout(tmp_path)
+    make = grid_module.dataset_argv(grid, layout, LINE)
+    parsed = build_parser().parse_args(make)
+    assert parsed.source == ["random"] and parsed.episodes == 12 and parsed.seed == 0
+
+
+def test_a_grid_file_with_an_unknown_key_or_no_dataset_is_refused(grid_module, tmp_path):
+    path = tmp_path / "grid.toml"
+    path.write_text('tasks = ["x"]\nsteps = 3\n[dataset]\nruns = 1\n')
+    with pytest.raises(ValueError, match="unknown key 'steps'"):
+        grid_module.Grid.read(path)
+    path.write_text('tasks = ["x"]\n[dataset]\n')
+    with pytest.raises(ValueError, match=r"runs \(SAC runs\) or sources"):
+        grid_module.Grid.read(path)
