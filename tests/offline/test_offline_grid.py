@@ -169,3 +169,14 @@ def test_a_grid_file_with_an_unknown_key_or_no_dataset_is_refused(grid_module, t
     path.write_text('tasks = ["x"]\n[dataset]\n')
     with pytest.raises(ValueError, match=r"runs \(SAC runs\) or sources"):
         grid_module.Grid.read(path)
+
+
+def test_the_committed_grid_plans_90_runs_whose_settings_are_valid(grid_module):
+    from seqrank.offline.settings import OfflineConfig, validate
+
+    path = SCRIPT.parents[1] / "results" / "offline-metaworld" / "grid.toml"
+    grid = grid_module.Grid.read(path)
+    jobs = list(grid_module.offline_jobs(grid, grid_module.Layout(Path("out"))))
+    assert len(jobs) == 90 and len({run for _, _, run, _ in jobs}) == 90
+    for _, dataset, _, settings in jobs:
+        validate(OfflineConfig(dataset=str(dataset), **settings))
