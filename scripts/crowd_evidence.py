@@ -1,6 +1,12 @@
 """The crowd's tables from a reward-benchmark grid (results/crowd/README.md).
 
     python scripts/crowd_evidence.py results/crowd/bench > results/crowd/tables.md
+    python scripts/crowd_evidence.py --uses results/crowd/uses > results/crowd/uses.md
+
+`--uses` (issue 49): grids of crowds with one bad member (named `bad`) or none, under
+several uses of the estimate (`--weightings`): each use's accuracy, its paired gain over
+labels as answered, each member's flag rate (the estimator's and the one before it, the
+reward model a voter) and interval coverage, and the answers the people gave.
 
 Reads the grid's rows.jsonl: each member alone (its own teacher spec) and the crowd, with
 and without reliability weighting, on the same pool and seeds. Writes three tables:
@@ -127,17 +133,119 @@ def reliability_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def crowd_of(teacher: str) -> str:
+    """A crowd's short name: its bad member's flips, or all good."""
+    for member in teacher.removeprefix("crowd:").split("+"):
+        knobs = dict(part.split("=", 1) for part in member.split(",")[1:])
+        if knobs.get("name") in ("bad", "noisy"):
+            flips = float(knobs.get("eps_mistake", 0.1))
+            return "bad always wrong" if flips == 1.0 else f"bad wrong {flips:.0%}"
+    return "all good"
+
+
+def _crowd_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [{**r, "crowd": crowd_of(r["teacher"])} for r in rows if r.get("members")]
+
+
+def use_gain_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Each use's accuracy minus labels as answered, paired by seed (the same answers)."""
+    by: dict[tuple[str, str, int], dict[str, dict[int, float]]] = defaultdict(
+        lambda: defaultdict(dict)
+    )
+    for row in _crowd_rows(rows):
+        key = (row["crowd"], row["scheme"], row["questions"])
+        by[key][row["weighting"]][row["seed"]] = row["accuracy"]
+    uses = sorted({w for sides in by.values() for w in sides} - {"none"})
+    lines = [
+        "| crowd | scheme | questions | as answered | "
+        + " | ".join(f"{use} - as answered [95% CI] (seeds)" for use in uses)
+        + " |",
+        "|---|---|---|---|" + "---|" * len(uses),
+    ]
+    for (crowd, scheme, questions), sides in sorted(by.items()):
+        cells = []
+        for use in uses:
+            seeds = sorted(set(sides.get(use, {})) & set(sides.get("none", {})))
+            gains = [sides[use][s] - sides["none"][s] for s in seeds]
+            cells.append(f"{_ci(gains, -1.0, 1.0)} ({len(seeds)})" if gains else "-")
+        plain = _ci(list(sides.get("none", {}).values()))
+        lines.append(f"| {crowd} | {scheme} | {questions} | {plain} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def flag_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Each member's flag rate over seeds, by the estimator and by the one before it
+    (the reward model a voter), with the true accuracy and the estimate's interval
+    coverage of it. One row per seed: the cells as answered (every use asks the same)."""
+    cells: dict[tuple[str, str, int, str], list[dict[str, Any]]] = defaultdict(list)
+    for row in _crowd_rows(rows):
+        if row["weighting"] == "none":
+            for name, member in row["members"].items():
+                cells[(row["crowd"], row["scheme"], row["questions"], name)].append(member)
+    lines = [
+        "| crowd | scheme | questions | member | true accuracy | estimate [95% CI over seeds] "
+        "| answers checked by others | flagged | interval covers the truth "
+        "| flagged, model a voter |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for (crowd, scheme, questions, name), members in sorted(cells.items()):
+        truths = [1 - m["true_error_rate"] for m in members if m["true_error_rate"] is not None]
+        covered = [
+            m["low"] <= 1 - m["true_error_rate"] <= m["high"]
+            for m in members
+            if m["true_error_rate"] is not None
+        ]
+        old = [m["with_model"]["flagged"] for m in members if "with_model" in m]
+        lines.append(
+            f"| {crowd} | {scheme} | {questions} | {name} | {np.mean(truths):.3f} "
+            f"| {_ci([m['estimate'] for m in members])} "
+            f"| {np.mean([m['answers'] for m in members]):.0f} "
+            f"| {sum(bool(m['flagged']) for m in members)}/{len(members)} "
+            f"| {sum(covered)}/{len(covered)} | {sum(old)}/{len(old)} |"
+        )
+    return lines
+
+
+def person_answers_table(rows: list[dict[str, Any]]) -> list[str]:
+    """The answers the people gave (second opinions included) per question asked."""
+    cells: dict[tuple[str, str, int], list[float]] = defaultdict(list)
+    for row in _crowd_rows(rows):
+        if row["weighting"] == "none":
+            answers = row["person_minutes"] * 60 / ANSWER_SECONDS
+            cells[(row["crowd"], row["scheme"], row["questions"])].append(answers)
+    lines = [
+        "| crowd | scheme | questions | person-answers (mean) | per question |",
+        "|---|---|---|---|---|",
+    ]
+    for (crowd, scheme, questions), answers in sorted(cells.items()):
+        mean = float(np.mean(answers))
+        lines.append(f"| {crowd} | {scheme} | {questions} | {mean:.0f} | {mean / questions:.2f} |")
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("grid", type=Path, help="the grid's folder (holds rows.jsonl)")
-    grid = parser.parse_args().grid
-    rows = [json.loads(line) for line in (grid / "rows.jsonl").read_text().splitlines()]
+    parser.add_argument(
+        "--uses", action="store_true", help="issue 49's tables: uses, flags, person-answers"
+    )
+    args = parser.parse_args()
+    rows = [json.loads(line) for line in (args.grid / "rows.jsonl").read_text().splitlines()]
     sections = [
         ("Held-out accuracy by question budget (mean [95% CI] over seeds)", accuracy_table),
         ("Reliability weighting: the paired gain", paired_gain),
         ("Human time at the largest budget", time_table),
         ("Each member's estimated reliability against the truth", reliability_table),
     ]
+    if args.uses:
+        sections = [
+            (
+                "Each use of the estimate against labels as answered (paired by seed)",
+                use_gain_table,
+            ),
+            ("Flags: each member, by question budget", flag_table),
+            ("What the people answered (second opinions included)", person_answers_table),
+        ]
     for title, table in sections:
         print(f"### {title}\n")
         print("\n".join(table(rows)) + "\n")

@@ -193,7 +193,16 @@ CASES = [
     ([*TRAIN, "--teacher", "crowd:oracle,time=0"], "time must be a number of seconds > 0"),
     (
         [*TRAIN, "--teacher", "crowd:oracle+noisy", "--crowd-weighting", "soft"],
-        "unknown --crowd-weighting 'soft'; accepted: reliability, none",
+        "unknown --crowd-weighting 'soft'; accepted: reliability, none, drop",
+    ),
+    (
+        [*TRAIN, "--teacher", "crowd:oracle+noisy", "--overlap-until", "-1", "--dry-run"],
+        "--overlap-until must be a whole number from 0 to 10000, got -1",
+    ),
+    ([*TRAIN, "--overlap-until", "40"], "--overlap-until acts on a crowd's answers; --teacher"),
+    (
+        [*TRAIN, "--teacher", "crowd:oracle+noisy", "--closure-checks", "2", "--dry-run"],
+        "--closure-checks must be a whole number from 0 to 1, got 2",
     ),
     ([*TRAIN, "--teacher", "perfect"], "unknown --teacher 'perfect'; accepted: oracle"),
     ([*TRAIN, "--task", "walker"], "unknown --task 'walker'; accepted: walker_walk"),
@@ -244,6 +253,10 @@ CASES = [
     ([*ONLINE, "--overlap", "0.5"], "one teacher: leave them out, or name a team with --annotat"),
     ([*OFFLINE, "--overlap", "0.5"], "--overlap 0.5 acts on a team's answers; one person answers"),
     ([*ONLINE, "--crowd-weighting", "reliability"], "--crowd-weighting acts on a crowd's answe"),
+    (
+        [*ONLINE, "--annotators", "alice,bob", "--overlap-until", "40"],
+        "--overlap-until 40: the labelling page's team is asked a share --overlap of its answ",
+    ),
     ([*ONLINE, "--port", "-1"], "argument --port: -1 is out of range; accepted: 0 to 65535"),
     ([*STUDY, "--seed", "-5"], "error: --seed must be a whole number from 0 to 4294967295"),
     ([*STUDY, "--methods", "root,foo"], "--methods 'root,foo': give distinct schemes"),
@@ -313,6 +326,9 @@ CASES = [
     (["reward-bench", "run", "--pool", "m.npz", "--augments", "off"], "accepted: full, checked, n"),
     (["reward-bench", "run", "--pool", "m.npz", "--orders", "sorted"], "unknown order 'sorted'; a"),
     (["reward-bench", "run", "--pool", "m.npz", "--orders", "x"], "accepted: uniform, collection"),
+    (["reward-bench", "run", "--pool", "m.npz", "--weightings", "x"], "accepted: reliability, no"),
+    (["reward-bench", "run", "--pool", "m.npz", "--overlap-until", "-1"], "--overlap-until: -1 i"),
+    (["reward-bench", "run", "--pool", "m.npz", "--closure-checks", "2"], "--closure-checks: 2 is"),
     (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "0"], "--window-steps: 0 is o"),
     (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "50"], "ended within window 0"),
     (["reward-bench", "run", "--pool", "{pool}", "--window-steps", "150"], "2 complete windows"),

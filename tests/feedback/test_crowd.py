@@ -402,7 +402,16 @@ def test_a_bad_crowd_spec_names_what_is_wrong(value, message):
 # --- settings -----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("setting", [{"overlap": 0.5}, {"crowd_weighting": "reliability"}])
+@pytest.mark.parametrize(
+    "setting",
+    [
+        {"overlap": 0.5},
+        {"crowd_weighting": "reliability"},
+        {"crowd_weighting": "drop"},
+        {"overlap_until": 40},
+        {"closure_checks": 1},
+    ],
+)
 def test_the_crowd_settings_are_refused_without_a_crowd(setting):
     (name,) = setting
     with pytest.raises(SettingError, match=rf"{name} act.* on a crowd's answers") as raised:

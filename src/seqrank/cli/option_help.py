@@ -50,6 +50,8 @@ MEANINGS = {
     "overlap": "a crowd's share of answers also asked of a second member, for agreement (0 to 1)",
     "overlap_until": "a crowd: every answer of a member with fewer than N answers shared with "
     "another member is asked again (evidence for the flags early; 0: the overlap only)",
+    "closure_checks": "a crowd: 1 asks a second opinion on a pair the owner's chain inferred "
+    "(one answer checks several of theirs), where there is one; 0: on the asked pair",
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
     "is right), drop (a flagged annotator's labels left out) or none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "

@@ -258,6 +258,7 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
             net=RewardNet(epochs=args.reward_epochs),
             window_steps=args.window_steps,
             overlap_until=args.overlap_until,
+            closure_checks=bool(args.closure_checks),
         )
         grid = open_grid(args.pool, settings, args.out)
     except ValueError as problem:

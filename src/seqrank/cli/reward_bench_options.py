@@ -107,6 +107,14 @@ def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
         "of the answers only)",
     )
     grid.add_argument(
+        "--closure-checks",
+        type=int_between(0, 1),
+        default=0,
+        help="a crowd teacher: 1 asks each second opinion, where the owner's chain inferred "
+        "one, on a pair its closure inferred (one answer checks several of theirs); 0: on the "
+        "asked pair (0)",
+    )
+    grid.add_argument(
         "--reward-epochs",
         type=int_between(1, 10_000),
         default=30,

@@ -68,10 +68,19 @@ def check_crowd(config: TrainConfig) -> None:
                 "online --annotators ...`, or a simulated crowd (crowd:oracle+noisy)"
             )
         check_annotator_names(config.annotators, setting("annotators"))
+        for name in ("overlap_until", "closure_checks"):
+            if getattr(config, name):
+                raise SettingError(
+                    f"{setting(name)} {getattr(config, name)}: the labelling page's team is "
+                    f"asked a share {setting('overlap')} of its answers again, not yet "
+                    "adaptively: leave it out (a simulated crowd takes it)"
+                )
     if kind == "crowd" or config.annotators:
         return
     crowd_only = [
-        f for f in fields(config) if f.name in ("overlap", "overlap_until", "crowd_weighting")
+        f
+        for f in fields(config)
+        if f.name in ("overlap", "overlap_until", "closure_checks", "crowd_weighting")
     ]
     given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
     if given:

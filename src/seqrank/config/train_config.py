@@ -177,6 +177,9 @@ class TrainConfig:
     # every answer of a member with fewer answers than this shared with someone else is
     # asked again (`feedback.overlap`: evidence for the flags early); 0: `overlap` only
     overlap_until: int = declare(Role.FEEDBACK, 0, Count(low=0, high=10_000))
+    # 1: a second opinion asks a pair the owner's chain's closure inferred, where there is
+    # one (`feedback.closure_checks`: one answer checks several)
+    closure_checks: int = declare(Role.FEEDBACK, 0, SWITCH)
     crowd_weighting: CrowdWeighting = declare(Role.FEEDBACK, CrowdWeighting.NONE)
     # a team at the labelling page (`label online`): name,name,...
     annotators: str = declare(Role.FEEDBACK, "")

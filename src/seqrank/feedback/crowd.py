@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from seqrank.episodes import Segments
+from seqrank.feedback.closure_checks import chain_inferences, pair_to_check
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
 from seqrank.feedback.overlap import adaptive_picks
 from seqrank.feedback.schemes import (
@@ -186,13 +187,21 @@ def overlap_picks(
 class CrowdSource:
     """A simulated crowd: scripted members, each answering its chain, at its own pace.
     `overlap_until` N: every answer of a member with fewer than N answers shared with
-    someone else is asked again (`seqrank.feedback.overlap`); 0: a share `overlap` only."""
+    someone else is asked again (`seqrank.feedback.overlap`); 0: a share `overlap` only.
+    `closure_checks`: a second opinion asks, where the owner's chain inferred one, a pair
+    its closure inferred rather than the asked pair (`seqrank.feedback.closure_checks`)."""
 
-    def __init__(self, members: Sequence[CrowdMember], overlap: float, overlap_until: int = 0):
+    def __init__(
+        self,
+        members: Sequence[CrowdMember],
+        overlap: float,
+        overlap_until: int = 0,
+        closure_checks: bool = False,
+    ):
         if not members:
             raise ValueError("a crowd needs at least one member")
         self.members, self.overlap = tuple(members), overlap
-        self.overlap_until = overlap_until
+        self.overlap_until, self.closure_checks = overlap_until, closure_checks
         self.shared: dict[str, int] = {}  # each member's answers shared with others so far
 
     def has_session(self, session: int) -> bool:
@@ -234,12 +243,18 @@ class CrowdSource:
         assert record.crowd is not None
         names = [m.name for m in self.members]
         rng = rngs[0]
+        inferred = chain_inferences(record) if self.closure_checks else {}
         opinions = []
         for k, person in self._picks(record, rng):
-            asked = record.answers[k]
-            question = Question(k, asked.first, asked.second, asked.question.first_is_defender)
-            answer = asker(person, rng)(asked.first, asked.second)
-            opinions.append(SecondOpinion(AnsweredQuestion(question, answer), names[person]))
+            asked, owner = record.answers[k], record.crowd.answered_by[k]
+            first, second, implied = asked.first, asked.second, None
+            check = pair_to_check(inferred.get(owner, []), asked, rng) if inferred else None
+            if check is not None:
+                first, second, implied = check[0], check[1], (owner, check[2])
+            question = Question(k, first, second, asked.question.first_is_defender)
+            answer = asker(person, rng)(first, second)
+            answered = AnsweredQuestion(question, answer)
+            opinions.append(SecondOpinion(answered, names[person], implied))
         return opinions
 
     def _picks(self, record: SessionRecord, rng: np.random.Generator) -> list[tuple[int, int]]:

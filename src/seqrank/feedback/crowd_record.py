@@ -6,15 +6,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from seqrank.types import AnsweredQuestion
+from seqrank.types import Answer, AnsweredQuestion
 
 
 @dataclass(frozen=True)
 class SecondOpinion:
-    """A question of someone's chain asked again of `annotator`."""
+    """A question of someone's chain asked again of `annotator`; or, a closure check
+    (`seqrank.feedback.closure_checks`), a pair the closure inferred from someone's chain,
+    with `implied`: (whose chain, the answer their answers imply)."""
 
     answered: AnsweredQuestion
     annotator: str
+    implied: tuple[str, Answer] | None = None
 
 
 @dataclass(frozen=True)

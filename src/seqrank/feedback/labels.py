@@ -116,6 +116,11 @@ class LabelStore:
         for asked, annotator, model in zip(asked_all, everyone, models, strict=True):
             first, second = offset[asked.first], offset[asked.second]
             self.crowd_answers.append((first, second, asked.answer.value, annotator, model))
+        for opinion, model in zip(crowd.second_opinions, models[len(answers) :], strict=True):
+            if opinion.implied is not None:  # a closure check: the chain's owner's answer
+                owner, implied = opinion.implied
+                first, second = offset[opinion.answered.first], offset[opinion.answered.second]
+                self.crowd_answers.append((first, second, implied.value, owner, model))
 
     def reliability(self) -> dict[str, Reliability]:
         """A crowd's annotators' reliability from every answer so far (empty for one

@@ -9,16 +9,19 @@ from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
 
-def make_source(teacher: str, overlap: float = 0.1, overlap_until: int = 0) -> FeedbackSource:
+def make_source(
+    teacher: str, overlap: float = 0.1, overlap_until: int = 0, closure_checks: bool = False
+) -> FeedbackSource:
     """The feedback source a `--teacher` value stands for; ValueError for `human` (it
     needs the labelling page) and for values `parse_teacher` refuses. `overlap`: the
     share of a crowd's answers also asked of a second member; `overlap_until`: every
-    answer of a member with fewer shared answers than this (`seqrank.feedback.overlap`)."""
+    answer of a member with fewer shared answers than this (`seqrank.feedback.overlap`);
+    `closure_checks`: second opinions on inferred pairs (`seqrank.feedback.closure_checks`)."""
     spec = parse_teacher(teacher)
     if spec.kind == "crowd":
         from seqrank.feedback.crowd import CrowdSource
 
-        return CrowdSource(spec.members, overlap, overlap_until)
+        return CrowdSource(spec.members, overlap, overlap_until, closure_checks)
     if spec.kind == "replay":
         from seqrank.feedback.replay import ReplaySource
 

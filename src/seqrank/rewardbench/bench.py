@@ -94,6 +94,7 @@ class BenchSettings:
     net: RewardNet = RewardNet()
     window_steps: int | None = None  # a session per window of the pool's run (`windows.py`)
     overlap_until: int = 0  # a crowd's adaptive overlap (`seqrank.feedback.overlap`)
+    closure_checks: bool = False  # second opinions on inferred pairs (`closure_checks.py`)
 
     def __post_init__(self) -> None:
         if not self.budgets or list(self.budgets) != sorted(set(self.budgets)):
@@ -199,7 +200,8 @@ class _CellRun:
         )
         until = settings.overlap_until
         if source is None:
-            source = make_source(cell.teacher, overlap_until=until)
+            checks = settings.closure_checks
+            source = make_source(cell.teacher, overlap_until=until, closure_checks=checks)
         self.source = source
         self.plan = _plan(cell, settings)
         # the learner's own stream (SURF's crops and unlabelled batches): the training

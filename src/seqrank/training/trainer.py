@@ -85,7 +85,9 @@ class Trainer:
         self.source = (
             source
             if source is not None
-            else make_source(config.teacher, config.overlap, config.overlap_until)
+            else make_source(
+                config.teacher, config.overlap, config.overlap_until, bool(config.closure_checks)
+            )
         )
         self.source.check_compatible(config.task, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
