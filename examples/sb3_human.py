@@ -13,7 +13,7 @@ import argparse
 from stable_baselines3 import SAC
 
 from seqrank.labelling.app import ServerOptions
-from seqrank.sb3 import PreferenceFeedback
+from seqrank.sb3 import PreferenceFeedback, PreferenceReplayBuffer
 
 
 def main() -> None:
@@ -43,7 +43,10 @@ def main() -> None:
     assert feedback.page is not None
     print(f"labelling page: {feedback.page.url}", flush=True)
     agent = dict(policy_kwargs=dict(net_arch=[64, 64]), batch_size=64) if args.tiny else {}
-    model = SAC("MlpPolicy", feedback.env, seed=0, **agent)
+    # its buffer gives pre-training's batches the state-entropy reward
+    model = SAC(
+        "MlpPolicy", feedback.env, seed=0, replay_buffer_class=PreferenceReplayBuffer, **agent
+    )
     try:
         model.learn(args.steps, callback=feedback)
         feedback.save(f"{args.out}/feedback")

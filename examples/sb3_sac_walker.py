@@ -15,7 +15,7 @@ import argparse
 
 from stable_baselines3 import SAC
 
-from seqrank.sb3 import PreferenceFeedback
+from seqrank.sb3 import PreferenceFeedback, PreferenceReplayBuffer
 
 # small enough for CI: the first session right after the first episode, 10 questions
 TINY = dict(seed_steps=1_000, unsup_steps=50, reward_batch=10, reward_epochs=5, heldout_pairs=50)
@@ -38,7 +38,10 @@ def main() -> None:
         **sizes,
     )
     agent = dict(policy_kwargs=dict(net_arch=[64, 64]), batch_size=64) if args.tiny else {}
-    model = SAC("MlpPolicy", feedback.env, seed=0, **agent)
+    # its buffer gives pre-training's batches the state-entropy reward
+    model = SAC(
+        "MlpPolicy", feedback.env, seed=0, replay_buffer_class=PreferenceReplayBuffer, **agent
+    )
     model.learn(args.steps, callback=feedback)
     feedback.save(args.out)
     c = feedback.run.counters

@@ -27,7 +27,7 @@ from stable_baselines3 import PPO, SAC
 
 from seqrank.config import resolve_config
 from seqrank.envs import make_env
-from seqrank.sb3 import PreferenceFeedback
+from seqrank.sb3 import PreferenceFeedback, PreferenceReplayBuffer
 from seqrank.sb3.envs import task_vec_env
 from seqrank.training.state import episode_seed
 
@@ -98,6 +98,7 @@ def agent_options(args: argparse.Namespace, config: dict[str, Any]) -> dict[str,
         "target_update_interval": config["target_update_every"],
         "ent_coef": f"auto_{config['init_temperature']}",
         "learning_starts": config["seed_steps"],
+        "replay_buffer_class": PreferenceReplayBuffer,  # pre-training's state-entropy reward
     }
 
 
@@ -170,7 +171,7 @@ class Job:
             model.save_replay_buffer(self.folder / "buffer")
         if feedback is not None:
             feedback.save(self.folder / "feedback")
-            episodes = [e.next_episode for e in feedback.seeded]
+            episodes = [e.next_episode for e in feedback.state.seeded]
         else:
             episodes = [env.envs[0].env.next_episode]
         (self.folder / "progress.json").write_text(json.dumps({"step": step, "episodes": episodes}))

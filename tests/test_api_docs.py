@@ -1,4 +1,4 @@
-"""Every public name of `import seqrank`, and `seqrank.sb3.PreferenceFeedback`, is documented
+"""Every public name of `import seqrank`, and `seqrank.sb3`'s, is documented
 for the site's Python API page (docs/reference/api.md renders the docstrings): a Google-style
 docstring with `Args:` for what it takes, `Attributes:` for a dataclass, `Returns:` for what
 it returns and an `Examples:` section whose doctests run as written."""
@@ -19,16 +19,17 @@ import seqrank
 VALUES = ("SCHEMES", "__version__")  # documented in the module docstring of seqrank
 NAMES = [name for name in seqrank.__all__ if name not in VALUES]
 SB3 = "PreferenceFeedback"
+SB3_BUFFER = "PreferenceReplayBuffer"
 SB3_MEMBERS = ("save", "load", "reward", "labels")
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 
 
 def public(name: str) -> Any:
-    if name == SB3:
+    if name in (SB3, SB3_BUFFER):
         pytest.importorskip("stable_baselines3")
-        from seqrank.sb3 import PreferenceFeedback
+        from seqrank import sb3
 
-        return PreferenceFeedback
+        return getattr(sb3, name)
     return getattr(seqrank, name)
 
 
@@ -74,7 +75,7 @@ def documented() -> list[tuple[str, Any]]:
         feedback = public(SB3)
     except pytest.skip.Exception:
         return found
-    found.append((SB3, feedback))
+    found += [(SB3, feedback), (SB3_BUFFER, public(SB3_BUFFER))]
     found += [
         (f"{SB3}.{member}", inspect.getattr_static(feedback, member)) for member in SB3_MEMBERS
     ]
@@ -93,7 +94,7 @@ def test_the_values_are_documented_in_the_module_docstring():
     assert "Examples:" in doc and ">>> " in doc
 
 
-@pytest.mark.parametrize("name", ["seqrank", *NAMES, SB3])
+@pytest.mark.parametrize("name", ["seqrank", *NAMES, SB3, SB3_BUFFER])
 def test_the_examples_run(name, tmp_path, monkeypatch):
     value = seqrank if name == "seqrank" else public(name)
     monkeypatch.chdir(tmp_path)  # examples write their runs and folders here

@@ -13,7 +13,8 @@ import torch
 from stable_baselines3 import A2C, DQN, PPO, SAC, TD3
 from stable_baselines3.common.logger import configure
 
-from seqrank.sb3 import agents
+from seqrank.errors import SettingError
+from seqrank.sb3 import PreferenceReplayBuffer, agents
 from support.sb3_envs import SENTINEL
 from support.sb3_runs import SMALL_SAC, feedback
 
@@ -39,7 +40,7 @@ def test_after_the_sessions_every_buffer_reward_is_the_models_prediction(agent):
     model = agent("MlpPolicy", fb.env, seed=1, **copy.deepcopy(SMALL_SAC))
     model.learn(1400, callback=fb)
     assert fb.run.counters.sessions == 3
-    assert fb.pretraining and fb.critic_reset  # PEBBLE's pieces: on for SAC and TD3
+    assert fb.state.pretraining and fb.state.critic_reset  # PEBBLE's pieces: on for SAC and TD3
     buffer = model.replay_buffer
     features = np.concatenate([buffer.observations[:1400, 0], buffer.actions[:1400, 0]], 1)
     expected = ensemble_mean_by_hand(fb.run.reward_model, features)
@@ -52,7 +53,7 @@ def test_a_discrete_agent_relabels_with_one_hot_actions():
     fb = feedback("block:place", steps=900, seed_steps=300, unsup_steps=0, max_feedback=20)
     model = DQN("MlpPolicy", fb.env, seed=0, learning_starts=100, batch_size=32)
     model.learn(900, callback=fb)
-    assert fb.run.counters.sessions == 2 and not fb.pretraining and not fb.critic_reset
+    assert fb.run.counters.sessions == 2 and not fb.state.pretraining and not fb.state.critic_reset
     buffer = model.replay_buffer
     one_hot = np.eye(8)[buffer.actions[:900, 0, 0].astype(int)]
     features = np.concatenate([buffer.observations[:900, 0], one_hot], 1)
@@ -89,17 +90,28 @@ def test_pretraining_batches_carry_the_state_entropy_reward_worked_out_by_hand()
     fb = feedback()
     model = SAC("MlpPolicy", fb.env, seed=0, **SMALL_SAC)
     model.learn(60, callback=fb)  # stored transitions, no update yet (learning_starts 100)
-    table = fb.table
-    fb.entropy.install(table)
+    assert isinstance(model.replay_buffer, PreferenceReplayBuffer)
+    assert model.replay_buffer.entropy is not None  # pre-training: no session yet
     torch.manual_seed(0)
     batch = model.replay_buffer.sample(16)
-    fb.entropy.remove()
     stored = model.replay_buffer.observations[:60, 0].astype(np.float64)
     queries = batch.observations.numpy().astype(np.float64)
     distances = np.linalg.norm(queries[:, None] - stored[None], axis=-1)
     kth = np.sort(distances, axis=1)[:, fb.config.knn_k]  # the query itself is at 0
     np.testing.assert_allclose(batch.rewards.numpy()[:, 0], kth / kth.std(), rtol=1e-4)
-    assert "sample" not in vars(model.replay_buffer)  # taken off: the buffer pickles clean
+
+
+def test_pretraining_without_the_preference_replay_buffer_is_refused_in_one_line():
+    fb = feedback()
+    model = SAC("MlpPolicy", fb.env, seed=0, policy_kwargs=dict(net_arch=[32, 32]))
+    expected = r"^pretrain: SAC pre-trains .* replay_buffer_class=PreferenceReplayBuffer\) "
+    with pytest.raises(
+        SettingError, match=expected + r"\(from seqrank.sb3\), or pass pretrain=False$"
+    ):
+        model.learn(10, callback=fb)
+    plain = feedback(pretrain=False)  # SB3's own buffer serves an agent that does not pre-train
+    agent = SAC("MlpPolicy", plain.env, seed=0, policy_kwargs=dict(net_arch=[32, 32]))
+    agent.learn(10, callback=plain)
 
 
 def test_reset_critic_gives_fresh_critic_weights_its_target_a_copy_and_keeps_the_actor():
@@ -126,7 +138,7 @@ def test_pebbles_pieces_are_on_for_sac_only_at_the_first_session(monkeypatch, tm
     model = SAC("MlpPolicy", fb.env, seed=0, **SMALL_SAC)
     model.set_logger(configure(str(tmp_path), ["csv"]))
     model.learn(1400, callback=fb)
-    assert fb.pretraining and fb.critic_reset and resets == [7]
+    assert fb.state.pretraining and fb.state.critic_reset and resets == [7]
     with open(tmp_path / "progress.csv") as rows:
         logged = [row for row in csv.DictReader(rows) if row.get("feedback/pairs_per_question")]
     assert len(logged) == 3  # a row per session, under seqrank's names
@@ -136,6 +148,6 @@ def test_pebbles_pieces_are_on_for_sac_only_at_the_first_session(monkeypatch, tm
     ppo_feedback = feedback(steps=1400, max_feedback=30)
     ppo = PPO("MlpPolicy", ppo_feedback.env, seed=0, n_steps=100, batch_size=50)
     ppo.learn(300, callback=ppo_feedback)
-    assert not ppo_feedback.pretraining and not ppo_feedback.critic_reset
+    assert not ppo_feedback.state.pretraining and not ppo_feedback.state.critic_reset
     assert ppo_feedback.config.first_session_step == 100  # no pre-training phase
     assert ppo_feedback.run.counters.sessions == 1 and resets == [7]

@@ -41,7 +41,7 @@ CARTPOLE = {**TINY, "unsup_steps": 0, "seed_steps": 100, "segment_length": 10}
 @pytest.mark.parametrize("agent", [DQN, A2C])
 def test_a_plain_discrete_gymnasium_env_is_taken_as_a_vec_env_of_one(agent):
     taught = PreferenceFeedback(gym.make("CartPole-v1"), **CARTPOLE)
-    assert taught.env.num_envs == 1 and taught.task.act_dim == 2
+    assert taught.env.num_envs == 1 and taught.state.task.act_dim == 2
     options = dict(learning_starts=50, batch_size=32) if agent is DQN else dict(n_steps=20)
     model = agent("MlpPolicy", taught.env, seed=0, **options)
     model.learn(200, callback=taught)

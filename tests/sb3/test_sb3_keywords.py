@@ -23,7 +23,7 @@ def test_numpy_numbers_are_taken_where_numbers_are(tmp_path):
     )
     assert taught.config.max_feedback == 40 and type(taught.config.max_feedback) is int
     assert type(taught.config.reward_lr) is float and taught.config.knn_k == 3
-    assert taught.options["n_envs"] == 1 and type(taught.options["n_envs"]) is int
+    assert taught.state.options["n_envs"] == 1 and type(taught.state.options["n_envs"]) is int
     taught.save(tmp_path / "saved")  # saved as JSON numbers
     saved = json.loads((tmp_path / "saved" / "settings.json").read_text())
     assert saved["config"]["max_feedback"] == 40 and saved["n_envs"] == 1
@@ -66,7 +66,9 @@ def test_booleans_must_be_booleans(options, message):
 
 def test_booleans_of_numpy_and_none_are_taken():
     taught = feedback(pretrain=np.bool_(False), reset_critic=None, wait_for_feedback=True)
-    assert taught.options["pretrain"] is False and taught.options["reset_critic"] is None
+    assert (
+        taught.state.options["pretrain"] is False and taught.state.options["reset_critic"] is None
+    )
 
 
 @pytest.mark.parametrize("options", [{"label_dir": "labels"}, {"page": object()}])

@@ -103,7 +103,7 @@ def test_seqranks_own_gymnasium_environment_is_taken_as_it_is():
     import seqrank  # noqa: F401  (registers seqrank/...)
 
     taught = PreferenceFeedback(gymnasium.make("seqrank/cartpole_swingup-v0"), **TINY)
-    assert taught.task.episode_length == 1000  # it ends its episodes itself
+    assert taught.state.task.episode_length == 1000  # it ends its episodes itself
 
 
 def test_a_judge_that_does_not_answer_with_an_answer_is_named():
@@ -125,4 +125,4 @@ def test_feedback_saved_for_your_own_environment_is_loaded_only_with_it(tmp_path
     PreferenceFeedback(make_line(), **TINY).save(tmp_path / "saved")
     with pytest.raises(ValueError, match=r"made for your own environment .*pass it again"):
         PreferenceFeedback.load(tmp_path / "saved")
-    assert PreferenceFeedback.load(tmp_path / "saved", make_line()).task.obs_dim == 2
+    assert PreferenceFeedback.load(tmp_path / "saved", make_line()).state.task.obs_dim == 2

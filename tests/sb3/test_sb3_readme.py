@@ -15,8 +15,8 @@ TINY = {
     "max_feedback=100, feedback_frequency=10_000)": "max_feedback=10, feedback_frequency=10_000, "
     "reward_batch=10, seed_steps=1_000, unsup_steps=50, steps=1_100, reward_epochs=5, "
     "heldout_pairs=50, device='cpu')",
-    'SAC("MlpPolicy", feedback.env, seed=0)': 'SAC("MlpPolicy", feedback.env, seed=0, '
-    "policy_kwargs=dict(net_arch=[32, 32]), batch_size=64)",
+    'SAC("MlpPolicy", feedback.env, seed=0,': 'SAC("MlpPolicy", feedback.env, seed=0, '
+    "policy_kwargs=dict(net_arch=[32, 32]), batch_size=64,",
     "model.learn(60_000,": "model.learn(1_100,",
 }
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from seqrank.sb3 import PreferenceFeedback
+from seqrank.sb3 import PreferenceFeedback, PreferenceReplayBuffer
 
 LINE = "support.sb3_envs:make_line"
 TINY = dict(
@@ -20,7 +20,12 @@ TINY = dict(
     heldout_pairs=50,
     device="cpu",
 )
-SMALL_SAC = dict(policy_kwargs=dict(net_arch=[32, 32]), batch_size=64, learning_starts=100)
+SMALL_SAC = dict(
+    policy_kwargs=dict(net_arch=[32, 32]),
+    batch_size=64,
+    learning_starts=100,
+    replay_buffer_class=PreferenceReplayBuffer,  # pre-training's state-entropy reward
+)
 
 
 def small_sac() -> dict[str, Any]:

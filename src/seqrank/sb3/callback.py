@@ -21,11 +21,12 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 import seqrank.sb3.agents as agents
 import seqrank.sb3.saving as saving
 from seqrank.config import TrainConfig
-from seqrank.errors import SettingError
+from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
 from seqrank.sb3.build import describe_task, make_teacher, task_names
 from seqrank.sb3.envs import PreferenceVecEnv, SeededEpisodes, reward_batch, task_vec_env
+from seqrank.sb3.replay import EntropyReward, PreferenceReplayBuffer
 from seqrank.sb3.run import FeedbackRun
 from seqrank.sb3.settings import (
     check_page_keywords,
@@ -34,6 +35,7 @@ from seqrank.sb3.settings import (
     sb3_options,
     without_pretraining,
 )
+from seqrank.sb3.state import FeedbackState
 from seqrank.sb3.streams import restore_rng
 from seqrank.sb3.tables import EpisodeTable, ReplayTable
 from seqrank.training.feedback_phase import feedback_step, learn_from_session
@@ -62,7 +64,9 @@ class PreferenceFeedback(BaseCallback):
             two `seqrank.Segment`s.
         scale: the presets, small or paper; auto (default): paper on CUDA, else small.
         pretrain: PEBBLE's state-entropy pre-training until the first session (after
-            `seed_steps + unsup_steps`); None (default): on for SAC and TD3 only.
+            `seed_steps + unsup_steps`); None (default): on for SAC and TD3 only. The
+            agent's batches get that reward from its replay buffer: make it with
+            `replay_buffer_class=PreferenceReplayBuffer`.
         reset_critic: a fresh critic after the first session, then
             `updates_after_reset` updates; None (default): on for SAC and TD3 only.
         n_envs: environments made of a task name (default 1); for your own environment
@@ -84,6 +88,8 @@ class PreferenceFeedback(BaseCallback):
         env: the VecEnv to give the agent, rewarded by the learned reward.
         config: the resolved settings (a `TrainConfig`).
         metrics: each session's metric row so far.
+        state: everything the feedback holds (`sb3.state.FeedbackState`), as `save`
+            writes it.
 
     Examples:
         >>> from seqrank.sb3 import PreferenceFeedback
@@ -91,7 +97,9 @@ class PreferenceFeedback(BaseCallback):
         >>> feedback = PreferenceFeedback("gym:Pendulum-v1", scheme="root", steps=2_000,
         ...     max_feedback=20, reward_batch=10, feedback_frequency=500, seed_steps=200,
         ...     unsup_steps=300)
-        >>> model = SAC("MlpPolicy", feedback.env, seed=0)
+        >>> from seqrank.sb3 import PreferenceReplayBuffer
+        >>> model = SAC("MlpPolicy", feedback.env, seed=0,
+        ...     replay_buffer_class=PreferenceReplayBuffer)  # pre-training's reward
         >>> model.learn(2_000, callback=feedback)  # doctest: +SKIP
         >>> feedback.env.num_envs, feedback.config.sessions, len(feedback.labels)
         (1, 2, 0)
@@ -114,7 +122,7 @@ class PreferenceFeedback(BaseCallback):
     ):
         super().__init__(verbose)
         name, preset = task_names(env)
-        self.options = options = sb3_options(
+        options = sb3_options(
             env, pretrain=pretrain, reset_critic=reset_critic, n_envs=n_envs,
             wait_for_feedback=wait_for_feedback,
         )  # fmt: skip
@@ -122,43 +130,56 @@ class PreferenceFeedback(BaseCallback):
         extra: dict[str, Any] = {"record_states": 1} if spec == "human" else {}
         if options["pretrain"] is False:  # no pre-training: the first session after seed_steps
             extra["unsup_steps"] = 0
-        self.given = _resolve(
+        config = _resolve(
             name, preset, scale, {"teacher": spec, **settings, **extra}, options["pretrain"]
         )
         check_page_keywords(env, teacher, label_dir, page)
-        self.from_task_name = isinstance(env, str)
-        self.config = config = self.given
         task = describe_task(env, options["n_envs"], config.seed)
         if task.episode_length is not None:
             check_episode_fits(config, task.episode_length, task.has_terminals)
-        self.task = task
         source = make_teacher(teacher, task.obs_dim, config.overlap)
-        self.page = None
+        opened = None
         if source is None:  # the person at the labelling page
             from seqrank.sb3.page import open_page
 
             assert label_dir is not None
-            self.page, source = open_page(Path(label_dir), config, task.obs_dim, task.act_dim, page)
+            opened, source = open_page(Path(label_dir), config, task.obs_dim, task.act_dim, page)
         device = resolve_device(config.device)
-        self.run = FeedbackRun(
+        run = FeedbackRun(
             config, source, task.obs_dim, task.act_dim, task.episode_length or 1, device,
             options["wait_for_feedback"],
         )  # fmt: skip
         venv = task.venv if task.venv is not None else task_vec_env(task.sims or [], config.seed)
-        self.seeded = [
-            e.env for e in getattr(venv, "envs", []) if isinstance(e.env, SeededEpisodes)
-        ]
+        seeded = [e.env for e in getattr(venv, "envs", []) if isinstance(e.env, SeededEpisodes)]
         record = bool(config.record_states)
-        self.env = PreferenceVecEnv(
-            venv, self.run.episodes, self.run.learned_reward, task.sims, record
+        vec_env = PreferenceVecEnv(venv, run.episodes, run.learned_reward, task.sims, record)
+        self.state = FeedbackState(
+            config, options, isinstance(env, str), task, run, vec_env, seeded, opened
         )
-        self.entropy = agents.EntropyBatches(config.knn_k, self.run.entropy_stats)
-        self.table: ReplayTable | EpisodeTable | None = None
-        self.metrics: list[dict[str, Any]] = []
-        self.pending: dict[str, Any] = {}  # what a loaded run restores when it trains again
-        self.pretraining = self.critic_reset = False
 
     # ---- the contract ---------------------------------------------------------------
+    @property
+    def env(self) -> PreferenceVecEnv:
+        return self.state.env
+
+    @property
+    def config(self) -> TrainConfig:
+        return self.state.config
+
+    @property
+    def metrics(self) -> list[dict[str, Any]]:
+        return self.state.metrics
+
+    @property
+    def run(self) -> FeedbackRun:
+        """seqrank's parts: reward model, sessions, episodes, counters."""
+        return self.state.run
+
+    @property
+    def page(self) -> Any:
+        """The labelling page (teacher="human"), else None."""
+        return self.state.page
+
     @property
     def labels(self) -> LabelStore:
         """Every labelled pair so far, asked and inferred (`len` counts them).
@@ -201,7 +222,8 @@ class PreferenceFeedback(BaseCallback):
         """Save settings, labels, reward model, episodes, counters and random streams.
 
         With SB3's `model.save` and `model.save_replay_buffer` a run continues from there
-        (`PreferenceFeedback.load`) as if uninterrupted when stopped at an episode end.
+        (`PreferenceFeedback.load`) as if uninterrupted when stopped at an episode end; one
+        saved within an episode is refused when it would train again.
 
         Args:
             path: the folder (made if needed): settings.json, labels.jsonl (seqrank's
@@ -214,7 +236,7 @@ class PreferenceFeedback(BaseCallback):
             >>> sorted(os.listdir("my-run"))
             ['feedback.pt', 'labels.jsonl', 'metrics.jsonl', 'settings.json']
         """
-        saving.save(self, Path(path))
+        saving.save(self.state, getattr(self, "model", None), Path(path))
 
     @classmethod
     def load(cls, path: str | Path, env: Any = None, **options: Any) -> PreferenceFeedback:
@@ -239,17 +261,22 @@ class PreferenceFeedback(BaseCallback):
             >>> feedback.config.task, feedback.config.scheme
             ('gym:Pendulum-v1', <SchemeName.RANKED: 'ranked'>)
         """
-        return saving.load(cls, Path(path), env, options)
+        first, keywords = saving.saved_keywords(Path(path), env, options)
+        feedback = cls(first, **keywords)
+        saving.restore(feedback.state, Path(path))
+        return feedback
 
     def close(self) -> None:
         """Stop the labelling page, if any (its answers are saved already)."""
-        if self.page is not None:
-            self.page.close()
-            self.page = None
+        if self.state.page is not None:
+            self.state.page.close()
+            self.state.page = None
 
     # ---- SB3's callback hooks ----------------------------------------------------------
     def _init_callback(self) -> None:
-        model, kind = self.model, type(self.model).__name__
+        model, kind, state = self.model, type(self.model).__name__, self.state
+        if state.resumed is not None:
+            saving.check_continuable(state.resumed)
         if not agents.acts_on(model, self.env):
             raise ValueError(
                 f"the agent's environment is not feedback.env: make it on feedback.env, "
@@ -257,34 +284,47 @@ class PreferenceFeedback(BaseCallback):
                 "and records the episodes the questions are about"
             )
         off_policy = agents.is_off_policy(model)
-        self.pretraining = pebble_default(
-            kind, self.options["pretrain"], not off_policy, "pretrain"
+        state.pretraining = pebble_default(
+            kind, state.options["pretrain"], not off_policy, "pretrain"
         )
-        reset = self.options["reset_critic"]
-        self.critic_reset = pebble_default(kind, reset, not off_policy, "reset_critic")
-        if not self.pretraining and self.config.unsup_steps:
-            self.config = without_pretraining(self.config)
+        reset = state.options["reset_critic"]
+        state.critic_reset = pebble_default(kind, reset, not off_policy, "reset_critic")
+        if not state.pretraining and state.config.unsup_steps:
+            state.config = without_pretraining(state.config)
         if isinstance(model, OffPolicyAlgorithm):
             assert model.replay_buffer is not None, "the agent's replay buffer is made with it"
-            true = self.pending.pop("true", None)
-            self.table = ReplayTable(model.replay_buffer, self.run.device, true)
+            true = state.resumed.true if state.resumed is not None else None
+            state.table = ReplayTable(model.replay_buffer, state.run.device, true)
         else:
-            self.table = EpisodeTable(
-                self.run.episodes, self.run.reward_model.reward, self.run.device
+            state.table = EpisodeTable(
+                state.run.episodes, state.run.reward_model.reward, state.run.device
             )
-        self.run.use_table(self.table)
+        state.run.use_table(state.table)
+        if state.pretraining and state.run.counters.sessions == 0:
+            self._entropy_batches(model, kind)
+
+    def _entropy_batches(self, model: Any, kind: str) -> None:
+        """Until the first session, the agent's batches carry the state-entropy reward."""
+        buffer = model.replay_buffer
+        if not isinstance(buffer, PreferenceReplayBuffer):
+            raise SettingError(
+                f"{setting('pretrain')}: {kind} pre-trains on the state-entropy reward, which "
+                f"its replay buffer gives: make it {kind}('MlpPolicy', feedback.env, "
+                "replay_buffer_class=PreferenceReplayBuffer) (from seqrank.sb3), or pass "
+                "pretrain=False"
+            )
+        buffer.entropy = EntropyReward(self.config.knn_k, self.run.entropy_stats)
 
     def _on_training_start(self) -> None:
-        if "global_rng" in self.pending:
-            restore_rng(self.pending.pop("global_rng"), self.model)
-        if self.pretraining and self.run.counters.sessions == 0:
-            assert isinstance(self.table, ReplayTable)
-            self.entropy.install(self.table)
+        resumed = self.state.resumed
+        if resumed is not None:  # once: the streams as they were saved
+            restore_rng(resumed.global_rng, self.model)
+            self.state.resumed = None
 
     def _on_step(self) -> bool:
-        if isinstance(self.table, ReplayTable):
+        if isinstance(self.state.table, ReplayTable):
             infos = self.locals["infos"]
-            self.table.store_true(np.array([info["true_reward"] for info in infos]))
+            self.state.table.store_true(np.array([info["true_reward"] for info in infos]))
         return True
 
     def _on_rollout_end(self) -> None:
@@ -293,27 +333,26 @@ class PreferenceFeedback(BaseCallback):
         if c.step < self.config.first_session_step:
             return
         feedback_step(self.run.sessions, c, self._learn_from)
-        if self.page is not None:
-            self.page.training(c.step)
-
-    def _on_training_end(self) -> None:
-        self.entropy.remove()  # the buffer pickles as SB3 made it
+        if self.state.page is not None:
+            self.state.page.training(c.step)
 
     def _learn_from(self, answered: AnsweredSession | None) -> None:
         if answered is None:
             return
-        run = self.run
-        self.entropy.remove()  # pre-training ends with the first session
+        run, state = self.run, self.state
+        buffer = getattr(self.model, "replay_buffer", None)
+        if isinstance(buffer, PreferenceReplayBuffer):
+            buffer.entropy = None  # pre-training ends with the first session
         updates = self.config.updates_after_reset
 
         def reset() -> None:
-            if self.critic_reset:
+            if state.critic_reset:
                 agents.reset_critic(self.model, updates)
 
         row = learn_from_session(
             answered, run.labels, run.counters, run.reward, self.config.seed, reset
         )
-        self.metrics.append(row)
+        state.metrics.append(row)
         for name, value in scalars(row).items():
             self.logger.record(name, value)
         self.logger.dump(self.num_timesteps)

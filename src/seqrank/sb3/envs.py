@@ -143,6 +143,9 @@ class PreferenceVecEnv(VecEnvWrapper):
         self.episodes, self.learned, self.sims = episodes, learned, sims
         self.recorders = [EpisodeRecorder(record_states) for _ in range(venv.num_envs)]
         self.contexts: list[int | None] = [None] * venv.num_envs
+        # each environment's steps since its episode began (0 at an episode end: a saved
+        # run continues exactly only from there)
+        self.steps_into_episodes = [0] * venv.num_envs
         self._obs: np.ndarray | None = None
         self._actions: np.ndarray | None = None
 
@@ -151,6 +154,7 @@ class PreferenceVecEnv(VecEnvWrapper):
         self._obs = self._flat(obs)
         self.recorders = [EpisodeRecorder(r.record_states) for r in self.recorders]
         self.contexts = [info.get("task_index") for info in self.venv.reset_infos]
+        self.steps_into_episodes = [0] * self.num_envs
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -167,6 +171,7 @@ class PreferenceVecEnv(VecEnvWrapper):
         for i, info in enumerate(infos):
             info["true_reward"] = float(true_rewards[i])
             self.recorders[i].add(self._obs[i], self._actions[i], float(true_rewards[i]))
+            self.steps_into_episodes[i] = 0 if dones[i] else self.steps_into_episodes[i] + 1
             if dones[i]:
                 self.episodes.add(self.recorders[i].finish(self.contexts[i]))
                 self.contexts[i] = self.venv.reset_infos[i].get("task_index")

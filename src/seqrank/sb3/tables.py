@@ -60,11 +60,6 @@ class ReplayTable:
         learned = self.buffer.rewards[: self.size].reshape(-1)[idx]
         return learned.astype(np.float32), self.true[: self.size].reshape(-1)[idx]
 
-    def stored_observations(self) -> torch.Tensor:
-        """Every stored observation, (rows, obs_dim), for the state-entropy reward."""
-        obs = self.buffer.observations[: self.size]
-        return torch.as_tensor(obs.reshape(-1, obs.shape[-1]), dtype=torch.float32)
-
     def state_dict(self) -> dict[str, Any]:
         return {"true": self.true.copy()}
 
