@@ -4,6 +4,8 @@ weighting `drop` that leaves a flagged member's labels out of reward training.""
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import torch
 
@@ -11,7 +13,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.closure_checks import chain_inferences
 from seqrank.feedback.crowd import CrowdSource
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.overlap import checker, needs_second_opinion
+from seqrank.feedback.overlap import checkers, needs_second_opinion
 from seqrank.feedback.reliability import Reliability
 from seqrank.feedback.schemes import segments_needed, uniform_choice
 from seqrank.feedback.session import SessionRequest, store_session
@@ -44,12 +46,22 @@ def crowd_sessions(
 
 def test_every_answer_is_asked_again_until_each_member_has_enough_shared_then_the_overlap():
     source = CrowdSource(parse_teacher(CROWD).members, overlap=0.0, overlap_until=20)
-    _, asked_again = crowd_sessions(source, sessions=5)
-    assert asked_again[0] == 24  # the first session: every answer
+    labels, asked_again = crowd_sessions(source, sessions=5)
+    assert asked_again[0] == 2 * 20  # every answer, by both others, until each has 20
     assert all(count >= 20 for count in source.shared.values())
     assert asked_again[-1] == 0  # enough evidence, and an overlap of 0 after it
-    # each second opinion is shared by two people: the counts add up
-    assert sum(source.shared.values()) == 2 * sum(asked_again)
+    # three opinions on each pair checked: the owner's and two others', counted once each
+    assert sum(source.shared.values()) == 3 * sum(asked_again) // 2
+    pairs = Counter((f, s) for f, s, _, _, _ in labels.crowd_answers)
+    assert set(pairs.values()) == {1, 3}
+
+
+def test_after_the_evidence_one_other_person_is_asked_a_share_overlap_of_the_answers():
+    source = CrowdSource(parse_teacher(CROWD).members, overlap=0.5, overlap_until=10)
+    labels, asked_again = crowd_sessions(source, sessions=6)
+    assert 0.3 * 24 < np.mean(asked_again[2:]) < 0.7 * 24
+    pairs = Counter((f, s) for f, s, _, _, _ in labels.crowd_answers[-24 * 2 :])
+    assert set(pairs.values()) <= {1, 2}
 
 
 def test_overlap_until_zero_asks_as_a_fixed_overlap_did():
@@ -66,11 +78,13 @@ def test_a_second_opinion_is_asked_while_the_owner_lacks_evidence_or_by_the_draw
     assert needs_second_opinion({}, "new", until=1, overlap=0.0, draw=0.5)
 
 
-def test_the_checker_is_the_other_person_with_the_fewest_shared_answers():
+def test_the_checkers_are_the_other_people_with_the_fewest_shared_answers():
     rng = np.random.default_rng(0)
-    shared = {"a": 0, "b": 9, "c": 2}
-    assert {checker(shared, "a", ["a", "b", "c"], rng) for _ in range(20)} == {"c"}
-    tied = {checker({"b": 1, "c": 1}, "a", ["a", "b", "c"], rng) for _ in range(40)}
+    people, shared = ["a", "b", "c", "d"], {"a": 0, "b": 9, "c": 2, "d": 5}
+    assert {tuple(checkers(shared, "a", people, rng)) for _ in range(20)} == {("c",)}
+    assert checkers(shared, "a", people, rng, count=2) == ["c", "d"]
+    assert sorted(checkers(shared, "a", people, rng, count=5)) == ["b", "c", "d"]
+    tied = {checkers({"b": 1, "c": 1}, "a", ["a", "b", "c"], rng)[0] for _ in range(40)}
     assert tied == {"b", "c"}
 
 

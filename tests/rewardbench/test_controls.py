@@ -77,6 +77,11 @@ def test_the_methods_are_named_by_their_controls():
     assert method({"learner": "surf", "stop": "asked"}) == "surf+stop-asked"
     assert method({"augment": "checked", "stop": "never"}) == "plain+checked+stop-never"
     assert method({"augment": "full", "stop": "all"}) == method({}) == "plain"
+    crowd = {"teacher": "crowd:oracle+noisy"}
+    assert method({**crowd, "weighting": "none"}) == "plain"
+    assert method({**crowd, "weighting": "reliability"}) == "plain+weighted"
+    assert method({**crowd, "weighting": "drop"}) == "plain+dropped"
+    assert method({"teacher": "oracle", "weighting": "drop"}) == "plain"
 
 
 def test_the_grid_has_a_stop_axis_and_rows_before_it_stopped_over_all(pool_file, tmp_path):

@@ -244,11 +244,13 @@ class CrowdSource:
         names = [m.name for m in self.members]
         rng = rngs[0]
         inferred = chain_inferences(record) if self.closure_checks else {}
-        opinions = []
+        opinions, checks = [], {}  # (one pair to check per answer, whoever checks it)
         for k, person in self._picks(record, rng):
             asked, owner = record.answers[k], record.crowd.answered_by[k]
             first, second, implied = asked.first, asked.second, None
-            check = pair_to_check(inferred.get(owner, []), asked, rng) if inferred else None
+            if inferred and k not in checks:
+                checks[k] = pair_to_check(inferred.get(owner, []), asked, rng)
+            check = checks.get(k)
             if check is not None:
                 first, second, implied = check[0], check[1], (owner, check[2])
             question = Question(k, first, second, asked.question.first_is_defender)

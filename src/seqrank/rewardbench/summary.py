@@ -29,7 +29,8 @@ def method(row: dict[str, Any]) -> str:
     """The reward learner, with a suffix per control away from its default: `+checked`
     under noise-aware augmentation, `+no-closure` without closure, `+stop-asked` or
     `+stop-never` for the stop rule, `+collection` for segments in collection order, and
-    `+weighted` for a crowd's labels weighted by reliability. The names of the defaults
+    `+weighted` for a crowd's labels weighted by reliability, `+dropped` for a flagged
+    member's labels left out. The names of the defaults
     (full closure, the stop over all labels, uniform order, a crowd's labels as answered)
     are bare, so a report's baseline is the default. Rows written before these axes are
     plain, full, stopped over all, uniform and weighted."""
@@ -39,8 +40,10 @@ def method(row: dict[str, Any]) -> str:
     stop, order = row.get("stop", "all"), row.get("order", "uniform")
     name += "" if stop == "all" else f"+stop-{stop}"
     name += "" if order == "uniform" else f"+{order}"
-    weighted = weighs_labels(row.get("teacher", "")) and row.get("weighting") != "none"
-    return f"{name}+weighted" if weighted else name
+    weighting = row.get("weighting", "reliability")
+    if not weighs_labels(row.get("teacher", "")) or weighting == "none":
+        return name
+    return name + {"reliability": "+weighted", "drop": "+dropped"}[weighting]
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
