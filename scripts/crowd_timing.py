@@ -25,6 +25,7 @@ from fastapi.testclient import TestClient
 
 from seqrank.labelling.app import OfflineOptions, ServerOptions, open_hub, run_offline
 from seqrank.labelling.crowd_source import open_team
+from seqrank.labelling.page_state import Phase
 from seqrank.labelling.server import create_app
 
 TASK = "dmc:cartpole_swingup"
@@ -42,20 +43,19 @@ def one_session(people: int, scheme: str, questions: int, pace: float, seed: int
     sessions: list[float] = []
 
     def drive() -> None:
-        original = hub.set_phase
+        original = hub.state.move
 
-        def spy(phase: str, message: str) -> None:
-            if phase == "asking":
+        def spy(phase: Phase | str, message: str) -> None:
+            if phase == Phase.ASKING:  # a team's session starts asking
                 sessions.append(time.monotonic())
             original(phase, message)
 
-        hub.set_phase = spy  # type: ignore[method-assign]
+        hub.state.move = spy  # type: ignore[method-assign]
         run_offline(directory, options, hub, lambda text: None)
         sessions.append(time.monotonic())
         done.set()
 
     def answer(name: str) -> None:
-        assert hub.crowd is not None
         client = TestClient(create_app(hub), base_url="http://127.0.0.1:8765")
         client.headers["X-Seqrank-Token"] = hub.crowd.tokens[name]
         rng = random.Random(name)

@@ -141,8 +141,7 @@ def test_survey_only_when_open_and_idempotent(page):
     body = {"run": "sequential", "satisfaction": 4, "criteria": "distance moved"}
     assert page.client.post("/api/survey", json=body).status_code == 409
     assert page.client.post("/api/survey", json={**body, "satisfaction": 6}).status_code == 422
-    page.hub.scheme, page.hub.survey_run = "sequential", "sequential"
-    page.hub.set_phase("survey", "survey")
+    page.hub.state.open_survey("sequential", "sequential", "survey")
     first = page.client.post("/api/survey", json=body)
     assert first.status_code == 200 and first.json()["duplicate"] is False
     assert page.client.post("/api/survey", json=body).json()["duplicate"] is True

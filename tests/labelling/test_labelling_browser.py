@@ -193,8 +193,7 @@ def test_a_whole_session_by_keyboard_click_timeout_and_reload(tmp_path):
 
 def test_the_survey_form_sends_satisfaction_and_criteria(tmp_path):
     hub = open_hub(tmp_path / "labels", "dmc:cartpole_swingup", ServerOptions(annotator="p07"))
-    hub.scheme, hub.survey_run = "root", "root"
-    hub.set_phase("survey", "survey about the root method")
+    hub.state.open_survey("root", "root", "survey about the root method")
     server = PageServer(hub, ServerOptions(port=0))
     server.start()
     try:

@@ -102,7 +102,7 @@ headers = st.one_of(st.just({}), st.just({}), st.just({}), odd_headers)
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     hub = waiting_question_hub(tmp_path_factory.mktemp("fuzz") / "labels")
-    hub.phase, hub.survey_run = "survey", "offline"  # a survey is open too
+    hub.state.open_survey("offline", "pairwise", "survey")  # a survey is open too
     yield hub, page_client(hub)
     hub.db.close()
 
@@ -135,7 +135,7 @@ def test_generated_requests_never_fail_the_server_nor_store_when_refused(
 @pytest.fixture
 def hub(tmp_path):
     hub = waiting_question_hub(tmp_path / "labels")
-    hub.phase, hub.survey_run = "survey", "offline"
+    hub.state.open_survey("offline", "pairwise", "survey")
     yield hub
     hub.db.close()
 

@@ -49,7 +49,7 @@ def waiting_question_hub(directory: Path, token: str | None = None) -> Hub:
     first, second = sorted(db.segment_ids("offline", 0).values())
     db.ensure_question("offline", 0, 0, first, second, None, first, second)
     hub = Hub(db, PageSettings(0.0, "tester", token))
-    hub.run, hub.scheme = "offline", "pairwise"
+    hub.state.show_session("offline", "pairwise", [])
     return hub
 
 

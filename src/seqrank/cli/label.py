@@ -329,6 +329,7 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
 
 def _train_online(started: Any, hub: Any, args: argparse.Namespace, say: Any) -> int:
     from seqrank.labelling.app import train_with_person
+    from seqrank.labelling.page_state import Phase
     from seqrank.training.loop import RunStopped
 
     trainer, path = started.trainer, started.run.path
@@ -343,7 +344,7 @@ def _train_online(started: Any, hub: Any, args: argparse.Namespace, say: Any) ->
             summary = train_with_person(trainer, hub, say)
             if summary is not None:
                 ended = f"training finished: eval return {summary['final_eval_return']}"
-                hub.set_phase("done", ended)
+                hub.state.move(Phase.DONE, ended)
                 say(f"run finished: {path}")
         except (KeyboardInterrupt, RunStopped):
             hub.stop.set()

@@ -109,16 +109,8 @@ def serve(hub: Any, args: argparse.Namespace, say: Any) -> Any:
 
     server = PageServer(hub, page_options(args))
     server.start()
-    if hub.crowd is not None:
-        from seqrank.labelling.crowd_source import team_addresses
-
-        base = server.remote_base or server.base
-        for who, address in team_addresses(hub, base):
-            say(f"{who}'s page: {address}")
-        return server
-    say(f"labelling page: {server.url}")
-    if server.remote_url is not None:
-        say(f"from other machines: {server.remote_url}")
+    for line in server.announce():
+        say(line)
     return server
 
 
@@ -142,20 +134,19 @@ def finish(hub: Any, server: Any, directory: Path, args: argparse.Namespace, say
 
 def human_trainer(hub: Any, run_name: str, wait: bool, say: Any) -> Any:
     from seqrank.labelling.app import record_task, training_progress
-    from seqrank.labelling.crowd_source import page_source
     from seqrank.training.trainer import Trainer
 
     def build(config: Any, run: Any) -> Any:
         trainer = Trainer(
             config,
             run,
-            source=page_source(hub, run_name, config.seed),
+            source=hub.source(run_name, config.seed),
             wait_for_feedback=wait,
         )
         env = trainer.env
         record_task(hub.db, config.task, env.obs_dim, env.act_dim, config.segment_length)
         trainer.progress = training_progress(hub, config, say)
-        hub.sessions_total = config.sessions
+        hub.state.plan(config.sessions)
         return trainer
 
     return build

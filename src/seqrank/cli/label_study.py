@@ -84,7 +84,7 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
         raise
     order = study_order(args.study_dir, args.participant, methods)
     hub = open_hub(participant_dir, new.task, page_options(args))
-    hub.sessions_total = 0
+    hub.state.plan(0)
     driver = _Study(hub, str(new.device), participant_dir, say)
     with stop_on_signals(driver.stop, say) as stop:
         server = serve(hub, args, say)
@@ -130,13 +130,14 @@ class _Study:
 
     def run(self, order: list[str], configs: dict[str, Any]) -> None:
         from seqrank.labelling.app import wait_survey
+        from seqrank.labelling.page_state import Phase
 
         for method in order:
             if not self.train(method, configs[method]):
                 return
             if not wait_survey(self.hub, method, method):
                 return
-        self.hub.set_phase("done", "the study is complete: thank you")
+        self.hub.state.move(Phase.DONE, "the study is complete: thank you")
         self.say(f"participant {self.directory.name} finished all methods")
 
     def train(self, method: str, config: Any) -> bool:

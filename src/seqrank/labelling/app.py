@@ -34,10 +34,11 @@ from seqrank.feedback.session import SessionRequest
 from seqrank.labelling import CLIP_SIZE
 from seqrank.labelling.access import Access, is_wildcard, page_token
 from seqrank.labelling.clips import ClipRenderer
-from seqrank.labelling.crowd_source import page_source
 from seqrank.labelling.db import LabelDB, from_blob
 from seqrank.labelling.human import Hub, PageSettings, Stopped
 from seqrank.labelling.jsonl import export_file
+from seqrank.labelling.page_state import Phase
+from seqrank.labelling.streams import Stream, stream
 from seqrank.types import Answer
 
 Say = Callable[[str], None]
@@ -78,8 +79,7 @@ class PageServer:
             ) from None
         port = self._socket.getsockname()[1]
         token = hub.settings.token
-        team = () if hub.crowd is None else tuple(hub.crowd.tokens.items())
-        access = Access.serving(options.host, port, token, options.allowed_hosts, team)
+        access = Access.serving(options.host, port, token, options.allowed_hosts, hub.mode.tokens())
         app = create_app(hub, access)
         config = uvicorn.Config(app, log_level="warning", lifespan="off")
         self._server = uvicorn.Server(config)
@@ -95,6 +95,13 @@ class PageServer:
         self.url = f"{self.base}{query}"
         self.remote_url = None if self.remote_base is None else f"{self.remote_base}{query}"
         self.port = port
+        self.hub = hub
+
+    def announce(self) -> list[str]:
+        """The lines that say where the page is (a team's: each person's address)."""
+        return self.hub.mode.announce(
+            base=self.base, url=self.url, remote_base=self.remote_base, remote_url=self.remote_url
+        )
 
     def start(self) -> None:
         self._thread.start()
@@ -192,7 +199,7 @@ def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:
 
     env = make_env(options.task, options.seed)
     agent = _saved_policy(options.policy_run, env) if options.policy_run else None
-    rng = np.random.default_rng([options.seed, 3])
+    rng = stream(options.seed, Stream.ROLLOUT)
     generator = torch.Generator().manual_seed(options.seed)
     store = EpisodeStore(options.episodes)
     recorder = EpisodeRecorder(record_states=True)  # the clips are rendered from states
@@ -238,7 +245,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
     record_task(db, options.task, env.obs_dim, env.act_dim, options.segment_length)
     env.close()
     hub.sessions_total = options.sessions
-    source = page_source(hub, "offline", options.seed)
+    source = hub.source("offline", options.seed)
     episodes: EpisodeStore | None = None
     chains = max(1, len(options.annotators))
     needed = segments_needed(options.scheme, options.questions, chains)
@@ -246,12 +253,12 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
         stored = db.session_row("offline", session)
         if stored is not None and db.count("offline", session) >= stored["questions"]:
             continue
-        rng = np.random.default_rng([options.seed, 4, session])
+        rng = stream(options.seed, Stream.OFFLINE_SESSION, session)
         if stored is not None:
             pool = db.pool("offline", session)
         else:
             if episodes is None:
-                hub.set_phase("waiting", "preparing the clips")
+                hub.state.move(Phase.WAITING, "preparing the clips")
                 episodes = rollout_episodes(options, say)
             pool = episodes.sample_segments(needed, options.segment_length, rng)
         request = SessionRequest(
@@ -268,7 +275,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
         say(f"session {session + 1}/{options.sessions}: {options.questions} questions")
         source.ask_session(request)
         export_file(db, directory / LABELS_FILE)
-    hub.set_phase("done", "all sessions are answered: thank you")
+    hub.state.move(Phase.DONE, "all sessions are answered: thank you")
     return len(db.answered_questions())
 
 
@@ -281,10 +288,11 @@ def training_progress(
         text = (
             f"step {step:,} of {config.steps:,}; eval return {'-' if ret is None else f'{ret:.1f}'}"
         )
-        if hub.phase != "asking" or (hub.crowd is None and hub.db.pending_question() is None):
-            hub.set_phase("training", f"the agent is training: {text}")
+        hub.state.show_training(
+            f"the agent is training: {text}", lambda: hub.mode.still_asking(hub)
+        )
         if step % config.eval_every == 0 and ret is not None:
-            hub.curve.append((step, float(ret)))
+            hub.state.add_eval(step, float(ret))
         if step % config.eval_every == 0:
             say(f"{text}; asked {live['asked']}, inferred {live['inferred']}")
 
@@ -306,15 +314,14 @@ def wait_survey(hub: Hub, run: str, scheme: str) -> bool:
     db = hub.db
     if db.survey(run) is not None:
         return True
-    hub.survey_run, hub.scheme = run, scheme
-    hub.set_phase("survey", f"survey about the {scheme} method")
+    hub.state.open_survey(run, scheme, f"survey about the {scheme} method")
+    answered = False
     with db.changed:
-        while not hub.stop.is_set():
-            if db.survey(run) is not None:
-                hub.survey_run = None
-                return True
+        while not hub.stop.is_set() and not (answered := db.survey(run) is not None):
             db.changed.wait(0.5)
-    return False
+    if answered:  # (out of the database's lock: the page state's is taken first elsewhere)
+        hub.state.close_survey()
+    return answered
 
 
 STUDY_SCHEMES = ("pairwise", "sequential", "root")

@@ -2,13 +2,12 @@
 
 A crowd session's questions are the `questions` table's rows as for one person; beside
 them, `crowd_questions` says whom each is assigned to, which chain it belongs to (a second
-opinion's chain is -1) and whether it was withdrawn (handed over to somebody else), and
-`crowd_chains` keeps each chain's share of the session (its questions, its slice of the
-pool, its owner, the chain it continues). A question's index in its session is
-`chain * CHAIN_STRIDE + k` for the k-th question of a chain and `-(index + 1)` for the
-second opinion on the question of that index, so a session replayed after a kill finds
-every stored row again. Every change is one transaction of `LabelDB`, committed before the
-caller hears back, as everything else there.
+opinion's chain is `SECOND_OPINIONS`) and whether it was withdrawn (handed over to somebody
+else), and `crowd_chains` keeps each chain's share of the session (its questions, its slice
+of the pool, its owner, the chain it continues). A question's index in its session is its
+key's (`crowd_keys`), so a session replayed after a kill finds every stored row again.
+Every change is one transaction of `LabelDB`, committed before the caller hears back, as
+everything else there.
 """
 
 from __future__ import annotations
@@ -16,8 +15,10 @@ from __future__ import annotations
 import json
 import sqlite3
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
+from seqrank.labelling.crowd_keys import ChainStep, key_of
 from seqrank.labelling.db import (
     AnswerConflict,
     LabelDB,
@@ -28,7 +29,6 @@ from seqrank.labelling.db import (
 )
 from seqrank.labelling.db_records import answer_from_row, question_from_row
 
-CHAIN_STRIDE = 100_000  # questions a chain may ask in one session
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS crowd_annotators (
     name TEXT PRIMARY KEY, token TEXT NOT NULL, position INTEGER NOT NULL);
@@ -41,6 +41,12 @@ CREATE TABLE IF NOT EXISTS crowd_questions (
     session INTEGER NOT NULL, chain INTEGER NOT NULL, annotator TEXT, assigned_at REAL,
     excluded TEXT, withdrawn_at REAL);
 """
+ANSWERS = (  # every answered crowd question, with its chain and its answer
+    "SELECT q.id, q.run, q.session, q.idx, q.first, q.second, c.chain, a.choice, a.answer, "
+    "a.annotator, a.latency_ms, a.answered_at FROM crowd_questions c "
+    "JOIN questions q ON q.id = c.question_id JOIN answers a ON a.question_id = q.id "
+    "ORDER BY a.answered_at"
+)
 UNANSWERED = (
     "SELECT q.*, c.chain, c.annotator, c.assigned_at, c.excluded FROM crowd_questions c "
     "JOIN questions q ON q.id = c.question_id LEFT JOIN answers a ON a.question_id = q.id "
@@ -66,7 +72,7 @@ class ChainRow:
 @dataclass(frozen=True)
 class Assignment:
     question: StoredQuestion
-    chain: int  # -1: a second opinion
+    chain: int  # SECOND_OPINIONS: a second opinion
     annotator: str | None
     assigned_at: float | None
     withdrawn: bool
@@ -115,6 +121,29 @@ class CrowdTables:
                 (chain.run, chain.session, chain.chain),
             ).fetchone()
         return _chain_from_row(row)
+
+    def continue_chain(
+        self, cut: ChainRow, make: Callable[[list[ChainRow]], ChainRow | None]
+    ) -> ChainRow | None:
+        """The chain that continues `cut`: the stored one, else `make(stored chains)` stored,
+        in one transaction (chains cut at once are numbered in turn)."""
+        with self.db.transaction() as conn:
+            rows = conn.execute(
+                "SELECT * FROM crowd_chains WHERE run = ? AND session = ? ORDER BY chain",
+                (cut.run, cut.session),
+            ).fetchall()
+            stored = [_chain_from_row(r) for r in rows]
+            for chain in stored:
+                if chain.parent == cut.chain:
+                    return chain
+            made = make(stored)
+            if made is not None:
+                conn.execute(
+                    "INSERT INTO crowd_chains VALUES (?, ?, ?, ?, ?, ?, ?, NULL)",
+                    (made.run, made.session, made.chain, made.parent, made.budget,
+                     json.dumps(list(made.pool)), made.owner),
+                )  # fmt: skip
+            return made
 
     def finish_chain(self, run: str, session: int, chain: int) -> None:
         """The chain asks nothing more (done, or handed over): its owner is free."""
@@ -236,14 +265,14 @@ class CrowdTables:
     def progress(self, question: StoredQuestion) -> tuple[int, int]:
         """(number, of): the question's place in its chain (1-based) and the chain's
         questions; a second opinion is (1, 1)."""
-        if question.index < 0:
+        key = key_of(question.index)
+        if not isinstance(key, ChainStep):
             return 1, 1
-        chain, k = divmod(question.index, CHAIN_STRIDE)
         rows = self.db.rows(
             "SELECT budget FROM crowd_chains WHERE run = ? AND session = ? AND chain = ?",
-            question.run, question.session, chain,
+            question.run, question.session, key.chain,
         )  # fmt: skip
-        return k + 1, int(rows[0]["budget"]) if rows else k + 1
+        return key.k + 1, int(rows[0]["budget"]) if rows else key.k + 1
 
     def restart_clocks(self) -> int:
         """The server starts: every question held and not answered starts its wait for
@@ -293,6 +322,10 @@ class CrowdTables:
         return [
             (question_from_row(r), r["who"], r["chain"], r["answer"], r["latency_ms"]) for r in rows
         ]
+
+    def answer_rows(self) -> list[sqlite3.Row]:
+        """Every answered crowd question: its pair, chain, choice, author and times."""
+        return self.db.rows(ANSWERS)
 
     def withdrawn_count(self) -> dict[str, int]:
         """Questions handed over, by the annotator they were taken from."""

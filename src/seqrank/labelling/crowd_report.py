@@ -1,7 +1,7 @@
-"""What the operator page shows of a team: per annotator their answers, pace, time-outs,
-latency, hand-overs, agreement on overlaps (Cohen's kappa) and reliability; the session's
-chains; the run's evaluation curve. All of it read from the labelling database, so the
-page shows what is stored, whatever the training process is doing."""
+"""The operator page of a team, and what it shows: per annotator their answers, pace,
+time-outs, latency, hand-overs, agreement on overlaps (Cohen's kappa) and reliability; the
+session's chains; the run's evaluation curve. All of it read from the labelling database,
+so the page shows what is stored, whatever the training process is doing."""
 
 from __future__ import annotations
 
@@ -10,26 +10,45 @@ from collections import Counter, defaultdict
 from statistics import median
 from typing import Any
 
-from seqrank.feedback.reliability import MODEL, Reliability, estimate_reliability, evidence_rows
-from seqrank.labelling.human import Hub
+from fastapi import APIRouter, HTTPException, Request
+from fastapi.responses import HTMLResponse
 
-ANSWERS_SQL = (
-    "SELECT q.id, q.run, q.session, q.idx, q.first, q.second, c.chain, a.choice, a.answer, "
-    "a.annotator, a.latency_ms, a.answered_at FROM crowd_questions c "
-    "JOIN questions q ON q.id = c.question_id JOIN answers a ON a.question_id = q.id "
-    "ORDER BY a.answered_at"
-)
+from seqrank.feedback.reliability import MODEL, Reliability, estimate_reliability, evidence_rows
+from seqrank.labelling.access import OPERATOR
+from seqrank.labelling.human import Hub
+from seqrank.labelling.server import STATIC
+
+
+def operator_routes(hub: Hub) -> APIRouter:
+    """A team's operator page, for the main token only (annotators' tokens cannot)."""
+    router = APIRouter()
+
+    def operator_only(request: Request) -> None:
+        if request.state.who != OPERATOR:
+            raise HTTPException(403, "the operator page needs the operator's token")
+
+    @router.get("/operator", response_class=HTMLResponse)
+    def operator_page(request: Request) -> str:
+        operator_only(request)
+        return (STATIC / "operator.html").read_text()
+
+    @router.get("/api/operator")
+    def operator_state(request: Request) -> dict[str, object]:
+        operator_only(request)
+        return operator_view(hub, str(request.base_url))
+
+    return router
 
 
 def operator_view(hub: Hub, base: str) -> dict[str, Any]:
     """The operator page's data; `base`: the server's address, for the team's links."""
-    assert hub.crowd is not None
-    rows = hub.db.rows(ANSWERS_SQL)
+    team, view = hub.crowd, hub.state.now()
+    rows = team.tables.answer_rows()
     reliability = _reliability(hub, rows)
     kappas = _kappas(rows)
-    handed = hub.crowd.tables.withdrawn_count()
+    handed = team.tables.withdrawn_count()
     people = []
-    for name, token in hub.crowd.tokens.items():
+    for name, token in team.tokens.items():
         mine = [r for r in rows if r["annotator"] == name]
         people.append(
             {
@@ -43,17 +62,17 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
         )
     model = reliability.get(MODEL)
     return {
-        "phase": hub.phase,
-        "message": hub.message,
-        "run": hub.run,
-        "scheme": hub.scheme,
-        "sessions": hub.sessions_total,
+        "phase": view.phase,
+        "message": view.message,
+        "run": view.run,
+        "scheme": view.scheme,
+        "sessions": view.sessions_total,
         "annotators": people,
         "model_reliability": None if model is None else _reliability_fields(model),
-        "chains": _chains(hub),
-        "curve": [{"step": step, "eval_return": value} for step, value in hub.curve],
-        "overlap": hub.crowd.overlap,
-        "reassign_after_s": hub.crowd.reassign_after,
+        "chains": _chains(hub, rows),
+        "curve": [{"step": step, "eval_return": value} for step, value in view.curve],
+        "overlap": team.overlap,
+        "reassign_after_s": team.reassign_after,
     }
 
 
@@ -132,17 +151,15 @@ def cohen_kappa(pairs: list[tuple[str, str]]) -> float | None:
     return None if chance >= 1.0 else (observed - chance) / (1.0 - chance)
 
 
-def _chains(hub: Hub) -> list[dict[str, Any]]:
-    """The current session's chains: owner, answered of their questions."""
-    assert hub.crowd is not None
+def _chains(hub: Hub, rows: list[Any]) -> list[dict[str, Any]]:
+    """The current session's chains: owner, answered of their questions (`rows`: every
+    answered crowd question)."""
     sessions = hub.db.sessions()
     if not sessions:
         return []
     latest = sessions[-1]
     run, session = latest["run"], latest["session"]
-    answered = Counter(
-        r["chain"] for r in hub.db.rows(ANSWERS_SQL) if r["run"] == run and r["session"] == session
-    )
+    answered = Counter(r["chain"] for r in rows if r["run"] == run and r["session"] == session)
     return [
         {
             "session": session + 1,

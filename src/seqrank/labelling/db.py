@@ -179,11 +179,12 @@ class LabelDB:
             r["id"]: r for r in self._rows(f"SELECT * FROM segments WHERE id IN ({marks})", *ids)
         }
 
-    def stored_choices(self, run: str, session: int) -> list[int]:
+    def choices(self, run: str, session: int) -> dict[int, int]:
+        """The session's stored choices: key -> position."""
         rows = self._rows(
-            "SELECT position FROM choices WHERE run = ? AND session = ? ORDER BY k", run, session
+            "SELECT k, position FROM choices WHERE run = ? AND session = ?", run, session
         )
-        return [r["position"] for r in rows]
+        return {int(r["k"]): int(r["position"]) for r in rows}
 
     def add_choice(self, run: str, session: int, k: int, position: int) -> None:
         with self._transaction() as conn:

@@ -1,34 +1,44 @@
 """A person as the teacher: sessions whose questions wait for answers from the page.
 
 The scheme runs unchanged; its `ask` stores the question and blocks until the page's answer
-is committed. Everything a session depends on is stored before it is used: the candidate
-pool, a session seed (which drives uniform draws and the side the defender is shown on) and
-every choice of the chooser. After a crash or a kill the same session is therefore replayed
-from the database: stored answers are given back at once and the first unanswered question
-is asked again, so nothing acknowledged is lost or asked twice.
+is committed. Everything a session depends on is stored before it is used
+(`session_replay`), so after a crash or a kill the same session is replayed from the
+database: stored answers are given back at once and the first unanswered question is asked
+again, so nothing acknowledged is lost or asked twice.
+
+The page's `Hub` is what the driver and the server share. Who answers at the page, one
+person (`Solo`) or a team (`crowd_source.Team`), is its `mode`: chosen once, before the
+page serves, and asked by everything that differs between the two.
 """
 
 from __future__ import annotations
 
-import sqlite3
 import threading
-from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
-
-import numpy as np
+from dataclasses import dataclass, field
+from itertools import count
+from typing import TYPE_CHECKING, Protocol
 
 from seqrank.episodes import Segments
-from seqrank.feedback.checking import Recheck
 from seqrank.feedback.schemes import SessionRecord, get_scheme, scheme_has_defender
-from seqrank.feedback.session import SessionRequest
+from seqrank.feedback.session import FeedbackSource, SessionRequest
 from seqrank.labelling.clips import ClipRenderer
 from seqrank.labelling.crowd_settings import CrowdSettings
-from seqrank.labelling.db import LabelDB
+from seqrank.labelling.db import LabelDB, StoredAnswer, StoredQuestion
+from seqrank.labelling.page_state import PageState, Phase
+from seqrank.labelling.session_replay import StoredSession, open_session
+from seqrank.labelling.streams import one_person_draws, one_person_side
 from seqrank.types import Answer
+
+if TYPE_CHECKING:
+    from fastapi import APIRouter
 
 
 class Stopped(Exception):
     """The labelling server is shutting down while a question waits for its answer."""
+
+
+class NotATeam(Exception):
+    """A team's part was asked of one person's page."""
 
 
 @dataclass
@@ -41,32 +51,141 @@ class PageSettings:
     playback: str = "side-by-side"
 
 
+class PageMode(Protocol):
+    """Who answers at the page, and all that differs with it: one person or a team."""
+
+    def source(self, hub: Hub, run: str, seed: int) -> FeedbackSource:
+        """The driver's teacher: its sessions' questions go to the page."""
+        ...
+
+    def tokens(self) -> tuple[tuple[str, str], ...]:
+        """(annotator, token) of those with a token of their own."""
+        ...
+
+    def question_for(self, hub: Hub, who: str | None) -> StoredQuestion | None:
+        """The question `who` should answer now."""
+        ...
+
+    def record_answer(
+        self, hub: Hub, question: StoredQuestion, choice: str, latency_ms: float, who: str | None
+    ) -> tuple[StoredAnswer, bool]:
+        """Commit `who`'s answer; returns it and whether it was stored already."""
+        ...
+
+    def place(self, question: StoredQuestion, questions: int) -> tuple[int, int]:
+        """(number, of): where the question stands among those asked of its person."""
+        ...
+
+    def routes(self, hub: Hub) -> list[APIRouter]:
+        """The mode's own pages."""
+        ...
+
+    def may_export(self, who: str | None) -> bool:
+        """Whether `who` may read every answer."""
+        ...
+
+    def still_asking(self, hub: Hub) -> bool:
+        """Whether the session that set the page asking is still asking."""
+        ...
+
+    def announce(
+        self, *, base: str, url: str, remote_base: str | None, remote_url: str | None
+    ) -> list[str]:
+        """The lines that tell the operator where the page is."""
+        ...
+
+    @property
+    def team(self) -> CrowdSettings:
+        """The team (NotATeam for one person)."""
+        ...
+
+
 @dataclass
 class Hub:
-    """What the driver (training or offline labelling) tells the page besides questions."""
+    """What the driver (training or offline labelling) and the server share: the database,
+    the clips, the stop signal, the page's state and who answers (`mode`)."""
 
     db: LabelDB
     settings: PageSettings
     renderer: ClipRenderer | None = None
     stop: threading.Event = field(default_factory=threading.Event)
-    phase: str = "starting"  # starting | asking | training | survey | done
-    message: str = "preparing the first questions"
-    run: str = ""
-    scheme: str = ""
-    sessions_total: int = 0
-    survey_run: str | None = None
-    upcoming: list[int] = field(default_factory=list)  # the session's segments, to prefetch
     clip_source: str = "state"  # clips re-rendered from saved states, or recorded "frames"
-    crowd: CrowdSettings | None = None  # a team of annotators (`--annotators`)
-    curve: list[tuple[int, float]] = field(default_factory=list)  # (step, eval return)
+    mode: PageMode = field(default_factory=lambda: Solo())
+    state: PageState = field(default_factory=PageState)
 
-    def set_phase(self, phase: str, message: str) -> None:
-        self.phase, self.message = phase, message
+    def choose_mode(self, mode: PageMode) -> None:
+        """Who answers at the page: chosen once, before the page asks anything."""
+        if not isinstance(self.mode, Solo) or self.state.now().phase is not Phase.STARTING:
+            raise RuntimeError("who answers at the page is chosen once, before it asks")
+        self.mode = mode
+
+    def source(self, run: str, seed: int) -> FeedbackSource:
+        """Who answers at the page as the teacher of `run` (its name in the database)."""
+        return self.mode.source(self, run, seed)
+
+    @property
+    def crowd(self) -> CrowdSettings:
+        """The page's team (NotATeam on one person's page)."""
+        return self.mode.team
+
+    @property
+    def phase(self) -> Phase:
+        return self.state.now().phase
+
+    def set_phase(self, phase: Phase | str, message: str) -> None:
+        self.state.move(phase, message)
+
+    @property
+    def upcoming(self) -> tuple[int, ...]:
+        return self.state.now().upcoming
+
+    @property
+    def sessions_total(self) -> int:
+        return self.state.now().sessions_total
+
+    @sessions_total.setter
+    def sessions_total(self, sessions: int) -> None:
+        self.state.plan(sessions)
 
 
-def _session_seed(run_seed: int, run: str, session: int) -> int:
-    words = [run_seed, session, *run.encode()]
-    return int(np.random.SeedSequence(words).generate_state(1)[0])
+class Solo:
+    """One person at the page: the question shown is the one being asked."""
+
+    def source(self, hub: Hub, run: str, seed: int) -> HumanSource:
+        return HumanSource(hub, run, seed)
+
+    def tokens(self) -> tuple[tuple[str, str], ...]:
+        return ()
+
+    def question_for(self, hub: Hub, who: str | None) -> StoredQuestion | None:
+        return hub.db.pending_question()
+
+    def record_answer(
+        self, hub: Hub, question: StoredQuestion, choice: str, latency_ms: float, who: str | None
+    ) -> tuple[StoredAnswer, bool]:
+        return hub.db.record_answer(question, choice, latency_ms, hub.settings.annotator)
+
+    def place(self, question: StoredQuestion, questions: int) -> tuple[int, int]:
+        return question.index + 1, questions
+
+    def routes(self, hub: Hub) -> list[APIRouter]:
+        return []
+
+    def may_export(self, who: str | None) -> bool:
+        return True
+
+    def still_asking(self, hub: Hub) -> bool:
+        return hub.db.pending_question() is not None  # its phase stays until the next move
+
+    def announce(
+        self, *, base: str, url: str, remote_base: str | None, remote_url: str | None
+    ) -> list[str]:
+        lines = [f"labelling page: {url}"]
+        return lines if remote_url is None else [*lines, f"from other machines: {remote_url}"]
+
+    @property
+    def team(self) -> CrowdSettings:
+        raise NotATeam("this page is one person's: it has no team")
 
 
 class HumanSource:
@@ -82,119 +201,50 @@ class HumanSource:
         pass
 
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
-        row = stored_session(self.hub.db, self.run, self.seed, request)
-        db = self.hub.db
-        pool = db.pool(self.run, request.session)
-        page_session = _PageSession(
-            hub=self.hub,
-            run=self.run,
-            request=request,
-            segment_ids=db.segment_ids(self.run, request.session),
-            seed=int(row["seed"]),
-            defender_side=str(row["defender_side"]),
-            has_defender=scheme_has_defender(request.scheme),
-            same_pool=np.array_equal(pool.features, request.segments.features),
-            stored_choices=db.stored_choices(self.run, request.session),
-        )
-        self.hub.run, self.hub.scheme = self.run, request.scheme
-        self.hub.upcoming = sorted(page_session.segment_ids.values())
+        stored = open_session(self.hub.db, self.run, self.seed, request)
+        page_session = _PageSession(self.hub, stored, scheme_has_defender(request.scheme))
+        upcoming = sorted(stored.segment_ids.values())
+        self.hub.state.show_session(self.run, request.scheme, upcoming)
         if self.hub.renderer is not None:  # render the pool ahead of the questions
-            self.hub.renderer.ahead(self.hub.upcoming)
+            self.hub.renderer.ahead(upcoming)
         scheme = get_scheme(request.scheme)
         record = scheme(
-            len(pool.features),
-            int(row["questions"]),
+            len(stored.pool.features),
+            stored.questions,
             page_session.ask,
-            np.random.default_rng(page_session.seed),
-            page_session.choose,
-            _stored_recheck(request, db.model_returns(self.run, request.session)),
+            one_person_draws(stored.seed),
+            stored.choices.chooser(count()),
+            stored.request.recheck,
         )
-        return pool, record
-
-
-def stored_session(db: LabelDB, run: str, run_seed: int, request: SessionRequest) -> sqlite3.Row:
-    """The session's stored row, storing the session and its pool first if it is new."""
-    session = request.session
-    row = db.session_row(run, session)
-    if row is None:
-        seed = _session_seed(run_seed, run, session)
-        side = "left" if np.random.default_rng(seed).random() < 0.5 else "right"
-        opinions = None if request.recheck is None else request.recheck.model_returns
-        if opinions is None:  # (a crowd's: its reliability estimate uses them)
-            opinions = request.model_returns
-        db.create_session(
-            run, session, request.scheme, request.questions, seed, side, request.segments,
-            model_returns=opinions,
-        )  # fmt: skip
-        row = db.session_row(run, session)
-        assert row is not None
-    if row["scheme"] != request.scheme:
-        raise RuntimeError(
-            f"run {run!r} session {session} was stored with scheme {row['scheme']!r}, "
-            f"not {request.scheme!r}"
-        )
-    return row
+        return stored.pool, record
 
 
 @dataclass
 class _PageSession:
-    """One session's `choose` and `ask` for its scheme, replaying what is stored first.
-
-    Stored choices are given back in order and only new ones are stored, so a session
-    replayed after a restart draws the same segments and reaches the same questions.
-    """
+    """One session's `ask` for its scheme: a stored question is found again, not added."""
 
     hub: Hub
-    run: str
-    request: SessionRequest
-    segment_ids: dict[int, int]  # pool id -> segment id
-    seed: int
-    defender_side: str  # where a defender is shown, all session long
+    stored: StoredSession
     has_defender: bool
-    same_pool: bool
-    stored_choices: list[int]
-    choices_made: int = 0
     questions_asked: int = 0
 
-    def choose(
-        self, defender: int | None, available: Sequence[int], rng: np.random.Generator
-    ) -> int:
-        made = self.choices_made
-        if made < len(self.stored_choices):
-            position = self.stored_choices[made]
-        else:
-            if self.same_pool:
-                position = self.request.chooser(defender, available, rng)
-            else:  # the stored pool is not the sampled one (a resumed GPU run): draw uniformly
-                position = int(rng.integers(len(available)))
-            self.hub.db.add_choice(self.run, self.request.session, made, position)
-        self.choices_made += 1
-        return position
-
     def ask(self, first: int, second: int) -> Answer:
-        hub, session, index = self.hub, self.request.session, self.questions_asked
-        a, b = self.segment_ids[first], self.segment_ids[second]
+        hub, stored, index = self.hub, self.stored, self.questions_asked
+        a, b = stored.segment_ids[first], stored.segment_ids[second]
         if self.has_defender:  # the defender keeps its side so that the person can follow it
-            left, right = (a, b) if self.defender_side == "left" else (b, a)
+            left, right = (a, b) if stored.defender_side == "left" else (b, a)
         else:
-            swap = np.random.default_rng([self.seed, index]).random() < 0.5
+            swap = one_person_side(stored.seed, index).random() < 0.5
             left, right = (b, a) if swap else (a, b)
+        defender = a if self.has_defender else None
         question = hub.db.ensure_question(
-            self.run, session, index, a, b, a if self.has_defender else None, left, right
+            stored.run, stored.session, index, a, b, defender, left, right
         )
         self.questions_asked += 1
         if hub.renderer is not None:
             hub.renderer.ahead([left, right])
-        hub.set_phase("asking", f"session {session + 1}: question {index + 1}")
-        stored = hub.db.wait_answer(question.id, hub.stop)
-        if stored is None:
+        hub.state.move(Phase.ASKING, f"session {stored.session + 1}: question {index + 1}")
+        answer = hub.db.wait_answer(question.id, hub.stop)
+        if answer is None:
             raise Stopped("the labelling server stopped")
-        return Answer(stored.answer)
-
-
-def _stored_recheck(request: SessionRequest, opinions: tuple[float, ...] | None) -> Recheck | None:
-    """The re-check the session was first asked with: the model's opinions stored with it
-    (they index the stored pool, which a resumed run may not sample again)."""
-    if request.recheck is None:
-        return None
-    return replace(request.recheck, model_returns=opinions)
+        return Answer(answer.answer)

@@ -42,6 +42,7 @@ from seqrank.labelling.limits import (
     one_line,
     valid_unicode,
 )
+from seqrank.labelling.page_state import Phase
 
 STATIC = resources.files("seqrank.labelling") / "static"
 NEXT_WAIT_S = 0.5  # an answer's reply waits this long at most for the next question
@@ -82,8 +83,8 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
     app.include_router(_question_routes(hub))
-    if hub.crowd is not None:
-        app.include_router(_operator_routes(hub))
+    for router in hub.mode.routes(hub):  # a team's operator page
+        app.include_router(router)
     app.include_router(_clip_routes(hub))
     app.include_router(_survey_routes(hub))
     app.include_router(_export_routes(hub))
@@ -91,13 +92,13 @@ def create_app(hub: Hub, access: Access | None = None) -> FastAPI:
 
 
 def _loopback_access(hub: Hub) -> Access:
-    team = () if hub.crowd is None else tuple(hub.crowd.tokens.items())
+    team = hub.mode.tokens()
     return Access.serving("127.0.0.1", 0, hub.settings.token, annotator_tokens=team)
 
 
 def _question_routes(hub: Hub) -> APIRouter:
     router = APIRouter()
-    db, settings = hub.db, hub.settings
+    db = hub.db
 
     @router.get("/api/state")
     def state(request: Request) -> dict[str, object]:
@@ -110,16 +111,9 @@ def _question_routes(hub: Hub) -> APIRouter:
         if question is None:
             raise HTTPException(404, f"unknown question {body.question_id}")
         try:
-            if hub.crowd is None:
-                stored, duplicate = db.record_answer(
-                    question, body.choice, body.latency_ms, settings.annotator
-                )
-            elif who == OPERATOR:
-                raise HTTPException(403, "the operator's token answers no questions")
-            else:
-                stored, duplicate = hub.crowd.tables.record_answer(
-                    question, body.choice, body.latency_ms, who
-                )
+            stored, duplicate = hub.mode.record_answer(
+                hub, question, body.choice, body.latency_ms, who
+            )
         except (AnswerConflict, NotAsked) as conflict:
             raise HTTPException(409, str(conflict)) from None
         except NotYours as refused:
@@ -138,35 +132,27 @@ def _question_routes(hub: Hub) -> APIRouter:
 def page_state(hub: Hub, who: str | None = None) -> dict[str, object]:
     """What the page shows now: a question, a survey, waiting or done; on a team's page,
     what the annotator `who` should do now."""
+    view = hub.state.now()
     common: dict[str, object] = {
-        "run": hub.run,
-        "scheme": hub.scheme,
+        "run": view.run,
+        "scheme": view.scheme,
         "annotator": hub.settings.annotator if who is None else who,
         "countdown_s": hub.settings.countdown_s,
-        "sessions": hub.sessions_total,
-        "message": hub.message,
+        "sessions": view.sessions_total,
+        "message": view.message,
         "clip_source": hub.clip_source,
         "playback": hub.settings.playback,
     }
-    question = _question_for(hub, who)
+    question = hub.mode.question_for(hub, who)
     if question is not None:
         return {**common, **_question_state(hub, question), "prefetch": _prefetch(hub, question)}
     if who == OPERATOR:
         return {**common, "status": "waiting", "message": "this is the operator's address: "
                 "the team's work is on /operator"}  # fmt: skip
-    if hub.phase == "survey" and hub.survey_run is not None:
-        return {**common, "status": "survey", "survey_run": hub.survey_run}
-    status = "done" if hub.phase == "done" else "waiting"
+    if view.phase is Phase.SURVEY:
+        return {**common, "status": "survey", "survey_run": view.survey_run}
+    status = "done" if view.phase is Phase.DONE else "waiting"
     return {**common, "status": status}
-
-
-def _question_for(hub: Hub, who: str | None) -> StoredQuestion | None:
-    """The question to show: the one being asked, or on a team's page the annotator's."""
-    if hub.crowd is None:
-        return hub.db.pending_question()
-    if who is None or who == OPERATOR:
-        return None
-    return hub.crowd.tables.claim(who)
 
 
 def _next_state(hub: Hub, answered: int, who: str | None = None) -> dict[str, object]:
@@ -174,9 +160,10 @@ def _next_state(hub: Hub, answered: int, who: str | None = None) -> dict[str, ob
     milliseconds): the page shows it without another request. At most NEXT_WAIT_S."""
     deadline = time.monotonic() + NEXT_WAIT_S
     while True:
-        pending = _question_for(hub, who)
+        pending = hub.mode.question_for(hub, who)
         moved_on = pending is not None and pending.id != answered
-        if moved_on or hub.phase in ("survey", "done") or time.monotonic() > deadline:
+        ended = hub.phase in (Phase.SURVEY, Phase.DONE)
+        if moved_on or ended or time.monotonic() > deadline:
             return page_state(hub, who)
         time.sleep(0.005)
 
@@ -195,11 +182,8 @@ def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:
     """The `/api/state` fields of a question waiting for its answer."""
     # the scheme and length of the question's own session, which may not be the hub's run
     session = hub.db.session_row(question.run, question.session)
-    scheme = session["scheme"] if session is not None else hub.scheme
-    questions = session["questions"] if session is not None else 0
-    index = question.index + 1
-    if hub.crowd is not None:  # a chain's k-th question, or a second opinion (index < 0)
-        index, questions = hub.crowd.tables.progress(question)
+    scheme = session["scheme"] if session is not None else hub.state.now().scheme
+    index, questions = hub.mode.place(question, session["questions"] if session is not None else 0)
     return {
         "status": "question",
         "run": question.run,
@@ -220,29 +204,6 @@ def _side(question: StoredQuestion, segment: int) -> dict[str, object]:
     if question.defender is not None:
         role = "defender" if segment == question.defender else "challenger"
     return {"segment": segment, "clip": f"/api/clips/{segment}.mp4", "role": role}
-
-
-def _operator_routes(hub: Hub) -> APIRouter:
-    """A team's operator page, for the main token only (annotators' tokens cannot)."""
-    router = APIRouter()
-
-    def operator_only(request: Request) -> None:
-        if request.state.who != OPERATOR:
-            raise HTTPException(403, "the operator page needs the operator's token")
-
-    @router.get("/operator", response_class=HTMLResponse)
-    def operator_page(request: Request) -> str:
-        operator_only(request)
-        return (STATIC / "operator.html").read_text()
-
-    @router.get("/api/operator")
-    def operator_state(request: Request) -> dict[str, object]:
-        operator_only(request)
-        from seqrank.labelling.crowd_report import operator_view
-
-        return operator_view(hub, str(request.base_url))
-
-    return router
 
 
 def _clip_routes(hub: Hub) -> APIRouter:
@@ -271,10 +232,11 @@ def _survey_routes(hub: Hub) -> APIRouter:
     @router.post("/api/survey")
     def survey(body: SurveyIn) -> dict[str, object]:
         stored = hub.db.survey(body.run)
+        view = hub.state.now()
         # a stored survey is answered again as a duplicate even after its phase has passed
-        if stored is None and (hub.phase != "survey" or hub.survey_run != body.run):
+        if stored is None and view.survey_run != body.run:
             raise HTTPException(409, "no survey is open for that run")  # (never echoed)
-        scheme = hub.scheme if stored is None else stored["scheme"]
+        scheme = view.scheme if stored is None else stored["scheme"]
         created = hub.db.record_survey(
             body.run, scheme, body.satisfaction, body.criteria, hub.settings.annotator
         )
@@ -288,7 +250,7 @@ def _export_routes(hub: Hub) -> APIRouter:
 
     @router.get("/api/labels.jsonl", response_class=PlainTextResponse)
     def labels(request: Request) -> str:
-        if hub.crowd is not None and request.state.who != OPERATOR:  # a team's: not annotators
+        if not hub.mode.may_export(request.state.who):  # a team's: not its annotators
             raise HTTPException(403, "every answer is the operator's to read")
         return "".join(line + "\n" for line in export_lines(hub.db))
 

@@ -1,0 +1,57 @@
+"""Where a team's question or choice sits in its session, and the index it is stored under.
+
+The `questions` and `choices` tables key a session's rows by one integer. A team's row
+is a `ChainStep` (the k-th question, or choice, of a chain) or a `SecondOpinionOf` (the
+second opinion on a chain's question); `index` and `key_of` are the one encoding between
+them and the integer: `chain * CHAIN_STRIDE + k`, and `-(index + 1)` for a second opinion,
+as every stored team session already holds them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+CHAIN_STRIDE = 100_000  # questions (or choices) a chain may make in one session
+SECOND_OPINIONS = -1  # the chain a second opinion is stored under in `crowd_questions`
+
+
+@dataclass(frozen=True)
+class ChainStep:
+    """The k-th question (or choice) of chain `chain`."""
+
+    chain: int
+    k: int
+
+    def __post_init__(self) -> None:
+        if self.chain < 0 or not 0 <= self.k < CHAIN_STRIDE:
+            raise ValueError(f"no chain step {self.k} of chain {self.chain}")
+
+    @property
+    def index(self) -> int:
+        return self.chain * CHAIN_STRIDE + self.k
+
+
+@dataclass(frozen=True)
+class SecondOpinionOf:
+    """The second opinion on the chain question `asked`."""
+
+    asked: ChainStep
+
+    @property
+    def index(self) -> int:
+        return -(self.asked.index + 1)
+
+
+QuestionKey = ChainStep | SecondOpinionOf
+
+
+def key_of(index: int) -> QuestionKey:
+    """The key a stored index encodes."""
+    if index < 0:
+        return SecondOpinionOf(_step(-index - 1))
+    return _step(index)
+
+
+def _step(index: int) -> ChainStep:
+    chain, k = divmod(index, CHAIN_STRIDE)
+    return ChainStep(chain, k)
