@@ -58,7 +58,6 @@ class TeamPage:
     def client(self, name: str) -> TestClient:
         """The page as `name` sees it ("operator": the operator's token)."""
         crowd = self.hub.crowd
-        assert crowd is not None
         client = page_client(self.hub)
         token = crowd.operator_token if name == "operator" else crowd.tokens[name]
         client.headers["X-Seqrank-Token"] = token
@@ -139,3 +138,28 @@ def start_team(args: list[str], names: tuple[str, ...]) -> tuple[subprocess.Pope
         raise AssertionError(f"the team's addresses were not printed: {addresses}")
     threading.Thread(target=process.stderr.read, daemon=True).start()  # never a full pipe
     return process, addresses
+
+
+def bare_team(directory: Path, names: list[str], reassign_after: float, overlap: float = 0.0):
+    """A team's hub with no clips and no driver: the test asks its sessions itself."""
+    from seqrank.labelling.db import LabelDB
+    from seqrank.labelling.human import PageSettings
+
+    hub = Hub(LabelDB.in_dir(directory), PageSettings(0.0, "tester", None))
+    open_team(hub, names, overlap, reassign_after)
+    return hub
+
+
+def team_request(scheme: str, questions: int, people: int, spare: int = 1):
+    """A session over featureless segments, `spare` times the pool its chains need."""
+    import numpy as np
+
+    from seqrank.episodes import Segments
+    from seqrank.feedback.schemes import segments_needed, uniform_choice
+    from seqrank.feedback.session import SessionRequest
+
+    n = spare * segments_needed(scheme, questions, people)
+    features = np.arange(n * 12, dtype=np.float32).reshape(n, 3, 4)
+    pool = Segments(features, np.zeros((n, 3)), [None] * n, [None] * n)
+    rng = np.random.default_rng(0)
+    return SessionRequest(scheme, questions, 0, pool, uniform_choice, rng, 0.0, chains=people)
