@@ -1,12 +1,19 @@
 """The page's random streams and keys keep the numbers stored sessions were made with
-(issue 48, item 3): a replay after the move draws what the first run drew."""
+(issue 48, item 3): a replay after the move draws what the first run drew, and a session
+asks what it asked before."""
 
 from __future__ import annotations
+
+import threading
+import time
+from threading import Event
 
 import numpy as np
 import pytest
 
 from seqrank.labelling.crowd_keys import ChainStep, SecondOpinionOf, key_of
+from seqrank.labelling.db import LabelDB
+from seqrank.labelling.human import Hub, PageSettings
 from seqrank.labelling.streams import (
     Stream,
     one_person_draws,
@@ -14,6 +21,7 @@ from seqrank.labelling.streams import (
     session_seed,
     stream,
 )
+from support.crowd import bare_team, team_request
 
 # the numbers each stream was drawn with before it was named
 BEFORE = {
@@ -55,3 +63,66 @@ def test_keys_encode_as_stored_sessions_hold_them():
         assert key_of(index).index == index
     with pytest.raises(ValueError):
         ChainStep(0, 100_000)
+
+
+# (index, first, second, left, right) of each question, as the code before the move
+# (83db08d) stored them for the sessions below: answers a function of the question
+TEAM_QUESTIONS = [
+    (-100003, 13, 9, 9, 13), (-100001, 17, 14, 17, 14), (-3, 2, 1, 2, 1), (-2, 4, 2, 4, 2),
+    (-1, 3, 4, 4, 3), (0, 3, 4, 4, 3), (1, 4, 2, 2, 4), (2, 2, 1, 1, 2),
+    (100000, 17, 14, 14, 17), (100001, 14, 13, 13, 14), (100002, 13, 9, 9, 13),
+]  # fmt: skip
+SOLO_QUESTIONS = [
+    (0, 11, 3, 11, 3), (1, 11, 7, 11, 7), (2, 11, 14, 11, 14), (3, 14, 2, 14, 2),
+    (4, 2, 5, 2, 5), (5, 5, 6, 5, 6),
+]  # fmt: skip
+
+
+def _choice(question) -> str:
+    return ("left", "right", "equal")[(question.left * 7 + question.right) % 3]
+
+
+def _answering(answer_one, done: threading.Event) -> None:
+    def run() -> None:
+        while not done.is_set():
+            if not answer_one():
+                time.sleep(0.005)
+
+    threading.Thread(target=run, daemon=True).start()
+
+
+def _questions(db: LabelDB) -> list[tuple]:
+    sql = "SELECT idx, first, second, left_seg, right_seg FROM questions ORDER BY idx"
+    return [tuple(row) for row in db.rows(sql)]
+
+
+def test_a_team_and_a_person_ask_what_they_asked_before_the_move(tmp_path):
+    hub, done = bare_team(tmp_path / "team", ["alice", "bob"], 60.0, overlap=0.5), Event()
+    tables = hub.crowd.tables
+    for name in ("alice", "bob"):
+
+        def one(name: str = name) -> bool:
+            question = tables.claim(name)
+            return question is not None and bool(
+                tables.record_answer(question, _choice(question), 5.0, name)
+            )
+
+        _answering(one, done)
+    hub.source("offline", 11).ask_session(team_request("sequential", 6, 2, spare=2))
+    done.set()
+    assert _questions(hub.db) == TEAM_QUESTIONS  # second opinions, chains' questions, sides
+    hub.db.close()
+
+    solo, done = Hub(LabelDB.in_dir(tmp_path / "solo"), PageSettings(0.0, "p", None)), Event()
+
+    def answer() -> bool:
+        question = solo.db.pending_question()
+        return question is not None and bool(
+            solo.db.record_answer(question, _choice(question), 5.0, "p")
+        )
+
+    _answering(answer, done)
+    solo.source("online", 11).ask_session(team_request("root", 6, 1, spare=2))
+    done.set()
+    assert _questions(solo.db) == SOLO_QUESTIONS
+    solo.db.close()
