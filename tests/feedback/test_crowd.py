@@ -407,7 +407,7 @@ def test_a_bad_crowd_spec_names_what_is_wrong(value, message):
     [
         {"overlap": 0.5},
         {"crowd_weighting": "reliability"},
-        {"crowd_weighting": "drop"},
+        {"crowd_weighting": "none"},
         {"overlap_until": 40},
         {"closure_checks": 1},
     ],

@@ -22,6 +22,9 @@ class _Labels:
     def __len__(self) -> int:
         return 4
 
+    def asked_mask(self) -> torch.Tensor:
+        return torch.tensor([not inferred for inferred in self.inferred])
+
     def tensors(self, device):
         segments = torch.zeros(5, 3, 2)
         first, second = torch.tensor([0, 0, 1, 2]), torch.tensor([1, 2, 3, 4])

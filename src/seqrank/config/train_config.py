@@ -38,6 +38,7 @@ from seqrank.config.ranges import (
 )
 from seqrank.config.roles import Role, check_declared, declare, role_of
 from seqrank.feedback.checking import Recheck
+from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 from seqrank.reward.rime import RimeSettings
@@ -172,15 +173,17 @@ class TrainConfig:
     hybrid_episodes: int = declare(Role.AGENT_FOR_FEEDBACK, 10, COUNT)
     # a crowd of annotators (`--teacher crowd:...`; `seqrank.feedback.crowd`): the share of
     # answers also asked of a second person, and how the labels count in reward training
-    # (weighting lost accuracy: results/crowd/)
+    # (weighting by reliability lost accuracy; a flagged member's labels dropped did not:
+    # results/crowd/)
     overlap: float = declare(Role.FEEDBACK, 0.1, SHARE)
     # every answer of a member with fewer answers than this shared with someone else is
-    # asked again (`feedback.overlap`: evidence for the flags early); 0: `overlap` only
-    overlap_until: int = declare(Role.FEEDBACK, 0, Count(low=0, high=10_000))
+    # asked again of two others (`feedback.overlap`: evidence for the flags early); 0:
+    # `overlap` only
+    overlap_until: int = declare(Role.FEEDBACK, EVIDENCE_UNTIL, Count(low=0, high=10_000))
     # 1: a second opinion asks a pair the owner's chain's closure inferred, where there is
     # one (`feedback.closure_checks`: one answer checks several)
     closure_checks: int = declare(Role.FEEDBACK, 0, SWITCH)
-    crowd_weighting: CrowdWeighting = declare(Role.FEEDBACK, CrowdWeighting.NONE)
+    crowd_weighting: CrowdWeighting = declare(Role.FEEDBACK, CrowdWeighting.DROP)
     # a team at the labelling page (`label online`): name,name,...
     annotators: str = declare(Role.FEEDBACK, "")
     # 1: keep physics states so labelled segments can be re-rendered

@@ -26,6 +26,7 @@ from seqrank.feedback.schemes import SessionRecord
 from seqrank.types import Answer
 
 CHECKERS = 2  # others asked while the owner's evidence is short: three opinions a pair
+EVIDENCE_UNTIL = 50  # a run's default `until` (results/crowd/README.md, issue 49)
 
 
 def needs_second_opinion(

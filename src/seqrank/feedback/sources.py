@@ -5,12 +5,16 @@ recorded earlier (`replay:FILE`), a simulated crowd (`crowd:oracle+noisy`), or a
 from __future__ import annotations
 
 from seqrank.errors import SettingError, setting
+from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
 
 def make_source(
-    teacher: str, overlap: float = 0.1, overlap_until: int = 0, closure_checks: bool = False
+    teacher: str,
+    overlap: float = 0.1,
+    overlap_until: int = EVIDENCE_UNTIL,
+    closure_checks: bool = False,
 ) -> FeedbackSource:
     """The feedback source a `--teacher` value stands for; ValueError for `human` (it
     needs the labelling page) and for values `parse_teacher` refuses. `overlap`: the
