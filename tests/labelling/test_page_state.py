@@ -71,3 +71,23 @@ def test_readers_see_a_survey_with_its_run_and_a_session_with_its_scheme():
         assert view.upcoming in ((), (int(view.run[3:]),))
     thread.join()
     assert len(seen) > 10
+
+
+def test_who_answers_is_chosen_once_before_the_page_asks(tmp_path):
+    from seqrank.labelling.crowd_source import open_team
+    from seqrank.labelling.db import LabelDB
+    from seqrank.labelling.human import Hub, NotATeam, PageSettings
+
+    solo = Hub(LabelDB.in_dir(tmp_path / "solo"), PageSettings())
+    with pytest.raises(NotATeam):
+        solo.crowd  # noqa: B018 (a person's page has no team)
+    solo.state.move(Phase.ASKING, "question 1")
+    with pytest.raises(RuntimeError, match="chosen once"):
+        open_team(solo, ["alice", "bob"], 0.0, 60.0)
+    team = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings())
+    open_team(team, ["alice", "bob"], 0.0, 60.0)
+    with pytest.raises(RuntimeError, match="chosen once"):
+        open_team(team, ["carol"], 0.0, 60.0)
+    assert list(team.crowd.tokens) == ["alice", "bob"]
+    solo.db.close()
+    team.db.close()

@@ -128,6 +128,8 @@ class Hub:
         """The page's team (NotATeam on one person's page)."""
         return self.mode.team
 
+    # the page's state as the SB3 page (`sb3/page.py`) reads and moves it; the labelling
+    # modules call `state` itself
     @property
     def phase(self) -> Phase:
         return self.state.now().phase
