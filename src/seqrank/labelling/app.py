@@ -244,7 +244,7 @@ def run_offline(directory: Path, options: OfflineOptions, hub: Hub, say: Say) ->
     env = make_env(options.task, options.seed)
     record_task(db, options.task, env.obs_dim, env.act_dim, options.segment_length)
     env.close()
-    hub.sessions_total = options.sessions
+    hub.state.plan(options.sessions)
     source = hub.source("offline", options.seed)
     episodes: EpisodeStore | None = None
     chains = max(1, len(options.annotators))

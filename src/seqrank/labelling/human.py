@@ -128,26 +128,14 @@ class Hub:
         """The page's team (NotATeam on one person's page)."""
         return self.mode.team
 
-    # the page's state as the SB3 page (`sb3/page.py`) reads and moves it; the labelling
-    # modules call `state` itself
+    # the page's state as the server reads it (moves go through `state`)
     @property
     def phase(self) -> Phase:
         return self.state.now().phase
 
-    def set_phase(self, phase: Phase | str, message: str) -> None:
-        self.state.move(phase, message)
-
     @property
     def upcoming(self) -> tuple[int, ...]:
         return self.state.now().upcoming
-
-    @property
-    def sessions_total(self) -> int:
-        return self.state.now().sessions_total
-
-    @sessions_total.setter
-    def sessions_total(self, sessions: int) -> None:
-        self.state.plan(sessions)
 
 
 class Solo:

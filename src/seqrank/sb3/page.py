@@ -8,6 +8,7 @@ from pathlib import Path
 from seqrank.config import TrainConfig
 from seqrank.labelling.app import PageServer, ServerOptions, close_hub, open_hub, record_task
 from seqrank.labelling.human import Hub, HumanSource
+from seqrank.labelling.page_state import Phase
 
 RUN_NAME = "sb3"  # the run's name inside the labelling database
 
@@ -22,11 +23,13 @@ class LabellingPage:
 
     def training(self, step: int) -> None:
         """Tell the page the agent is training (between sessions)."""
-        if self.hub.phase != "asking" or self.hub.db.pending_question() is None:
-            self.hub.set_phase("training", f"the agent is training: step {step:,}")
+        hub = self.hub
+        hub.state.show_training(
+            f"the agent is training: step {step:,}", lambda: hub.mode.still_asking(hub)
+        )
 
     def close(self) -> None:
-        self.hub.set_phase("done", "training finished: thank you")
+        self.hub.state.move(Phase.DONE, "training finished: thank you")
         self.server.stop()
         close_hub(self.hub, self.directory, lambda text: None)
 
@@ -43,7 +46,7 @@ def open_page(
     directory.mkdir(parents=True, exist_ok=True)
     hub = open_hub(directory, config.task, options)
     record_task(hub.db, config.task, obs_dim, act_dim, config.segment_length)
-    hub.sessions_total = config.sessions
+    hub.state.plan(config.sessions)
     server = PageServer(hub, options)
     server.start()
     return LabellingPage(hub, server, directory), HumanSource(hub, RUN_NAME, config.seed)
