@@ -84,6 +84,8 @@ def test_who_answers_is_chosen_once_before_the_page_asks(tmp_path):
     solo.state.move(Phase.ASKING, "question 1")
     with pytest.raises(RuntimeError, match="chosen once"):
         open_team(solo, ["alice", "bob"], 0.0, 60.0)
+    made = solo.db.rows("SELECT name FROM sqlite_master WHERE name = 'crowd_annotators'")
+    assert not made or solo.db.rows("SELECT * FROM crowd_annotators") == []  # nothing stored
     team = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings())
     open_team(team, ["alice", "bob"], 0.0, 60.0)
     with pytest.raises(RuntimeError, match="chosen once"):

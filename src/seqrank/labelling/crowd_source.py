@@ -60,6 +60,7 @@ def open_team(hub: Hub, names: Sequence[str], overlap: float, reassign_after: fl
     """Make `hub` a team's page: each annotator with their own token (kept in the database,
     so that a resumed run's addresses stay the same), the main token the operator's; the
     questions pending when the server stopped wait `reassign_after` again from now."""
+    hub.check_mode_open()  # before the tokens are stored
     tables = CrowdTables(hub.db)
     tables.restart_clocks()  # the time the server was down is nobody's delay
     known = tables.annotators()

@@ -113,10 +113,14 @@ class Hub:
     mode: PageMode = field(default_factory=lambda: Solo())
     state: PageState = field(default_factory=PageState)
 
-    def choose_mode(self, mode: PageMode) -> None:
-        """Who answers at the page: chosen once, before the page asks anything."""
+    def check_mode_open(self) -> None:
+        """Refuse, before anything is stored, a choice of who answers that comes too late."""
         if not isinstance(self.mode, Solo) or self.state.now().phase is not Phase.STARTING:
             raise RuntimeError("who answers at the page is chosen once, before it asks")
+
+    def choose_mode(self, mode: PageMode) -> None:
+        """Who answers at the page: chosen once, before the page asks anything."""
+        self.check_mode_open()
         self.mode = mode
 
     def source(self, run: str, seed: int) -> FeedbackSource:
