@@ -38,10 +38,10 @@ QUOTED = [
     ("results/online-walker-mistake/README.md", "95% bootstrap"),
     ("src/seqrank/rewardbench/curves.py", "3 s a question"),
     # the paper's window-open row (supplementary Table 7) and the sweep's state
+    ("results/reward-bench/mechanism/README.md", "10 000 steps"),
     ("results/online-window-open-cpu/README.md", "49.4 ± 43.2"),
     ("results/online-window-open-cpu/README.md", "72.4 ± 39.0"),
     ("results/online-window-open-cpu/README.md", "98.6 ± 3.1"),
-    ("results/online-window-open-cpu/README.md", "5 of 32 runs"),
     ("results/online-window-open-cpu/README.md", "1,000 questions"),
     ("results/online-window-open-cpu/README.md", "150,000 steps"),
     ("results/online-window-open-cpu/README.md", "instead of 1M"),
@@ -238,7 +238,20 @@ def computed_phrases() -> list[str]:
     root500, pairwise300 = window("root", 500), window("pairwise", 300)
     sweep = data("results/sweep-walker-cpu/report.json")["table"]
     ppo = data("results/sb3/report.json")["table"]
+    finished = len(list((ROOT / "results/online-window-open-cpu/runs").rglob("summary.json")))
+    windows = data("results/reward-bench/mechanism/walker-windows/summary.json")
+
+    def at_100(scheme: str, learner: str = "plain") -> dict[str, Any]:
+        return only(windows, scheme=scheme, learner=learner, questions=100)
+
     return [
+        f"{finished} of 32 runs",
+        "at 100 questions held-out accuracy is "
+        + ", ".join(f"{s} {at_100(s)['accuracy'][0]:.3f}" for s in ("pairwise", "sequential"))
+        + f", root {at_100('root')['accuracy'][0]:.3f} (uniform draws)",
+        f"root labels {at_100('root', 'plain+collection')['pairs']:.0f} pairs against "
+        f"{at_100('root')['pairs']:.0f}",
+        f"reaches {at_100('root', 'plain+collection')['accuracy'][0]:.3f}, no more accurate",
         f"100 root questions cost {minutes['root']} annotator minutes against "
         f"{minutes['pairwise']} for pairwise",
         f"a session of 100 questions shows {window('root', 100)['clips']:.0f} clips",
