@@ -47,10 +47,10 @@ BREAKS = (
     ),
     Break(
         "reward: the stop rule counts the inferred pairs when asked for the asked ones",
-        "training/reward_phase.py",
-        "[not inferred for inferred in self.labels.inferred]",
-        "[inferred for inferred in self.labels.inferred]",
-        ("tests/training/test_reward_stop_on.py",),
+        "feedback/labels.py",
+        "[not i for i, k in zip(self.inferred, kept, strict=True) if k]",
+        "[i for i, k in zip(self.inferred, kept, strict=True) if k]",
+        ("tests/training/test_reward_stop_on.py", "tests/feedback/test_asked_mask.py"),
     ),
     Break(
         "reward: the stop rule's pair marks inverted",
