@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from seqrank.cli.options import Parser, int_between, names, seed_number
-from seqrank.cli.reward_bench_options import add_grid_axes, add_grid_sizes
+from seqrank.cli.reward_bench_options import add_crowd_evidence, add_grid_axes, add_grid_sizes
 from seqrank.cli.reward_bench_report import add_report, write_report
 from seqrank.errors import UsageError
 from seqrank.feedback.schemes import SchemeName
@@ -114,6 +114,7 @@ def _add_grid(actions: Any) -> None:
         "(oracle)",
     )
     add_grid_axes(grid)
+    add_crowd_evidence(grid)
     grid.add_argument("--seeds", type=int_between(1, 10_000), default=3, help="seeds 0..N-1 (3)")
     add_grid_sizes(grid)
     grid.set_defaults(handler=run_grid)

@@ -69,6 +69,27 @@ def add_grid_axes(grid: argparse.ArgumentParser) -> None:
     )
 
 
+def add_crowd_evidence(grid: argparse.ArgumentParser) -> None:
+    """How a crowd teacher gathers evidence of its members' reliability."""
+    grid.add_argument(
+        "--overlap-until",
+        type=int_between(0, 10_000),
+        default=0,
+        metavar="N",
+        help="a crowd teacher's adaptive overlap: every answer of a member with fewer than N "
+        "answers shared with another member is asked again of someone else (0: a share 0.1 "
+        "of the answers only)",
+    )
+    grid.add_argument(
+        "--closure-checks",
+        type=int_between(0, 1),
+        default=0,
+        help="a crowd teacher: 1 asks each second opinion, where the owner's chain inferred "
+        "one, on a pair its closure inferred (one answer checks several of theirs); 0: on the "
+        "asked pair (0)",
+    )
+
+
 def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
     """How much each cell asks and trains, and where the grid runs and writes."""
     grid.add_argument(
@@ -96,23 +117,6 @@ def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
         "steps k*N to (k+1)*N - 1, and each budget is scored on the next window's episodes, "
         "with no held-out split (off: every session on the training episodes, scored on "
         "the held-out ones)",
-    )
-    grid.add_argument(
-        "--overlap-until",
-        type=int_between(0, 10_000),
-        default=0,
-        metavar="N",
-        help="a crowd teacher's adaptive overlap: every answer of a member with fewer than N "
-        "answers shared with another member is asked again of someone else (0: a share 0.1 "
-        "of the answers only)",
-    )
-    grid.add_argument(
-        "--closure-checks",
-        type=int_between(0, 1),
-        default=0,
-        help="a crowd teacher: 1 asks each second opinion, where the owner's chain inferred "
-        "one, on a pair its closure inferred (one answer checks several of theirs); 0: on the "
-        "asked pair (0)",
     )
     grid.add_argument(
         "--reward-epochs",
