@@ -181,6 +181,14 @@ def test_a_foreign_minari_dataset_loads_with_its_task_named_or_found(tmp_path, c
     assert (info["task"], info["transitions"], info["provenance"]) == (CARTPOLE, 10, None)
     with pytest.raises(ValueError, match="observations of size 5 and actions of size 1; task"):
         load_dataset(unnamed, task="walker_walk")
+    pool_command = ["reward-bench", "pool", "--from-dataset", str(unnamed),
+                    "--out", str(tmp_path / "pool.npz")]  # fmt: skip
+    assert main(pool_command) == 2  # a pool needs the task too, in one line
+    assert "does not name a seqrank task" in capsys.readouterr().err
+    named = [*pool_command, "--task", "cartpole_swingup", "--random-episodes", "2"]
+    assert main(named) == 0, capsys.readouterr().err
+    assert main([*pool_command[:-1], str(tmp_path / "other.npz"), "--task", "walker_walk"]) == 2
+    assert "observations of size 5" in capsys.readouterr().err
     found = _foreign(tmp_path / "found", 5, "seqrank/cartpole_swingup-v0")
     assert load_dataset(found).task == CARTPOLE  # from its environment spec
     with pytest.raises(ValueError, match="observations of size 4"):

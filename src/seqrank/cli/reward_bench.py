@@ -55,8 +55,9 @@ def _add_pool(actions: Any) -> None:
     pool = actions.add_parser("pool", help="build a pool: a true-reward run's episodes + random")
     pool.add_argument(
         "--task",
-        default="walker_walk",
+        default=None,
         help="the task of the true-reward run that is trained for the pool (walker_walk); "
+        "with --from-dataset, the task of a dataset that names none (a foreign one); "
         "ignored with --from-run, whose task it is",
     )
     pool.add_argument(
@@ -169,7 +170,7 @@ def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
             raise ValueError("--from-dataset takes a dataset's episodes: leave out --from-run "
                              "and --until-step")  # fmt: skip
         check_file(args.out, "pool file")
-        dataset = load_dataset(args.from_dataset)
+        dataset = load_dataset(args.from_dataset, task=args.task)
         check_pool_size(dataset.episode_count + random_count, f"dataset {args.from_dataset}")
     except ValueError as problem:
         raise UsageError(str(problem)) from None
@@ -196,7 +197,8 @@ def _start_pool_run(args: argparse.Namespace) -> Started:
     from seqrank.training.trainer import Trainer
 
     settings = {"reward": "true", "steps": args.steps, "seed": args.seed, "device": "cpu"}
-    config = resolve_config(args.task, "small", {**settings, "episodes_kept": args.steps})
+    task = args.task if args.task is not None else "walker_walk"
+    config = resolve_config(task, "small", {**settings, "episodes_kept": args.steps})
     return open_or_start(args.out.with_suffix(".run"), config, "cpu", Trainer)
 
 
