@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from seqrank.feedback.peer_reliability import FLAG_AFTER
 from seqrank.rewardbench.intervals import bounded_interval
 
 ANSWER_SECONDS = 3.0  # a crowd member's default answer time (`time=` of crowd:...)
@@ -206,6 +207,34 @@ def flag_table(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+THRESHOLDS = (0.78, 0.80, 0.82, 0.84, 0.86)
+
+
+def threshold_table(rows: list[dict[str, Any]]) -> list[str]:
+    """The flag's error rates had it been set elsewhere: the share of the bad members an
+    estimate below each threshold would flag (with as many answers checked as the flag
+    needs), and of the good ones, over every scheme and seed, by question budget."""
+    counts: dict[tuple[int, bool], list[tuple[float, int]]] = defaultdict(list)
+    for row in _crowd_rows(rows):
+        if row["weighting"] == "none":
+            for name, member in row["members"].items():
+                bad = name in ("bad", "noisy")
+                counts[(row["questions"], bad)].append((member["estimate"], member["answers"]))
+    header = " | ".join(f"below {t:.2f}: bad / good" for t in THRESHOLDS)
+    lines = [f"| questions | {header} |", "|---|" + "---|" * len(THRESHOLDS)]
+    for questions in sorted({q for q, _ in counts}):
+        cells = []
+        for threshold in THRESHOLDS:
+            rates = []
+            for bad in (True, False):
+                found = counts.get((questions, bad), [])
+                flagged = sum(e < threshold and n >= FLAG_AFTER for e, n in found)
+                rates.append(f"{flagged}/{len(found)}")
+            cells.append(" / ".join(rates))
+        lines.append(f"| {questions} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def person_answers_table(rows: list[dict[str, Any]]) -> list[str]:
     """The answers the people gave (second opinions included) per question asked."""
     cells: dict[tuple[str, str, int], list[float]] = defaultdict(list)
@@ -244,6 +273,10 @@ def main() -> None:
                 use_gain_table,
             ),
             ("Flags: each member, by question budget", flag_table),
+            (
+                "The flag's error rates at other thresholds (every crowd and scheme)",
+                threshold_table,
+            ),
             ("What the people answered (second opinions included)", person_answers_table),
         ]
     for title, table in sections:
