@@ -5,7 +5,6 @@ so the page shows what is stored, whatever the training process is doing."""
 
 from __future__ import annotations
 
-import math
 from collections import Counter, defaultdict
 from statistics import median
 from typing import Any
@@ -13,7 +12,8 @@ from typing import Any
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import HTMLResponse
 
-from seqrank.feedback.reliability import MODEL, Reliability, estimate_reliability, evidence_rows
+from seqrank.feedback.peer_reliability import estimate_from_peers
+from seqrank.feedback.reliability import Reliability, evidence_rows
 from seqrank.labelling.access import OPERATOR
 from seqrank.labelling.human import Hub
 from seqrank.labelling.server import STATIC
@@ -44,7 +44,7 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
     """The operator page's data; `base`: the server's address, for the team's links."""
     team, view = hub.crowd, hub.state.now()
     rows = team.tables.answer_rows()
-    reliability = _reliability(hub, rows)
+    reliability = _reliability(rows)
     kappas = _kappas(rows)
     handed = team.tables.withdrawn_count()
     people = []
@@ -60,7 +60,6 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
                 **_reliability_fields(reliability.get(name)),
             }
         )
-    model = reliability.get(MODEL)
     return {
         "phase": view.phase,
         "message": view.message,
@@ -68,7 +67,6 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
         "scheme": view.scheme,
         "sessions": view.sessions_total,
         "annotators": people,
-        "model_reliability": None if model is None else _reliability_fields(model),
         "chains": _chains(hub, rows),
         "curve": [{"step": step, "eval_return": value} for step, value in view.curve],
         "overlap": team.overlap,
@@ -89,24 +87,11 @@ def _pace(rows: list[Any]) -> dict[str, Any]:
     }
 
 
-def _reliability(hub: Hub, rows: list[Any]) -> dict[str, Reliability]:
-    """Every annotator's reliability from the stored answers, the model's opinions stored
-    with each session as the model's vote."""
-    pool_of: dict[tuple[str, int], dict[int, int]] = {}
-    evidence = []
-    for r in rows:
-        key = (r["run"], r["session"])
-        if key not in pool_of:
-            ids = hub.db.segment_ids(*key)
-            pool_of[key] = {segment: pool_id for pool_id, segment in ids.items()}
-        opinions = hub.db.model_returns(*key)
-        model = None
-        if opinions is not None:
-            first, second = pool_of[key][r["first"]], pool_of[key][r["second"]]
-            difference = max(-50.0, min(50.0, opinions[first] - opinions[second]))
-            model = 1.0 / (1.0 + math.exp(-difference))
-        evidence.append((r["first"], r["second"], r["answer"], r["annotator"], model))
-    return estimate_reliability(evidence_rows(evidence))
+def _reliability(rows: list[Any]) -> dict[str, Reliability]:
+    """Every annotator's reliability from the stored answers: the estimator whose flags
+    reward training acts on (`--crowd-weighting drop`), from the other people's answers."""
+    evidence = [(r["first"], r["second"], r["answer"], r["annotator"], None) for r in rows]
+    return estimate_from_peers(evidence_rows(evidence))
 
 
 def _reliability_fields(found: Reliability | None) -> dict[str, Any]:
@@ -118,6 +103,7 @@ def _reliability_fields(found: Reliability | None) -> dict[str, Any]:
         "high": found.high,
         "rests_on": found.answers,
         "flagged": found.flagged,
+        "flag_below": found.flag_below,
     }
 
 

@@ -20,14 +20,14 @@ function showAnnotators(people) {
     const row = document.createElement("tr");
     row.dataset.annotator = p.name;
     if (p.flagged) row.className = "flagged";
-    cell(row, p.name + (p.flagged ? " (flagged: below the threshold)" : ""), p.flagged ? "flag" : "");
+    cell(row, p.name + (p.flagged ? ` (flagged: estimated below ${p.flag_below})` : ""), p.flagged ? "flag" : "");
     cell(row, String(p.answers));
     cell(row, num(p.per_minute, 1));
     cell(row, String(p.timeouts));
     cell(row, p.median_latency_ms === null ? "-" : `${(p.median_latency_ms / 1000).toFixed(1)} s`);
     cell(row, String(p.handed_over));
     cell(row, num(p.kappa, 2));
-    cell(row, p.reliability === null ? "-" : `${num(p.reliability, 2)} [${num(p.low, 2)}, ${num(p.high, 2)}]`);
+    cell(row, p.reliability === null ? "-" : `${num(p.reliability, 2)} [${num(p.low, 2)}, ${num(p.high, 2)}], ${p.rests_on} checked`);
     cell(row, p.address, "address");
     body.appendChild(row);
   }
@@ -82,8 +82,6 @@ async function refresh() {
     showAnnotators(view.annotators);
     showChains(view.chains);
     showCurve(view.curve);
-    const m = view.model_reliability;
-    $("model").textContent = m && m.reliability !== null ? `the reward model, as one more voter: ${num(m.reliability, 2)} [${num(m.low, 2)}, ${num(m.high, 2)}]` : "";
     $("updated").textContent = `updated ${new Date().toLocaleTimeString()}`;
   } catch (error) {
     $("updated").textContent = `not updated (${error.message}); retrying`;
