@@ -126,3 +126,10 @@ def test_feedback_saved_for_your_own_environment_is_loaded_only_with_it(tmp_path
     with pytest.raises(ValueError, match=r"made for your own environment .*pass it again"):
         PreferenceFeedback.load(tmp_path / "saved")
     assert PreferenceFeedback.load(tmp_path / "saved", make_line()).state.task.obs_dim == 2
+
+
+def test_a_crowd_teacher_takes_the_runs_evidence_settings():
+    """`overlap_until` and `closure_checks` reach an SB3 run's crowd, as `seqrank train`'s."""
+    crowd = feedback(teacher="crowd:oracle+oracle", overlap=0.3, overlap_until=7, closure_checks=1)
+    source = crowd.state.run.source
+    assert (source.overlap, source.overlap_until, source.closure_checks) == (0.3, 7, True)

@@ -184,16 +184,14 @@ def _check_with_env(config: TrainConfig) -> Runtime:
     """The checks a run makes once its environment is built (episode length, memory, a
     replayed label file's features against the task's); where and how it would train."""
     from seqrank.envs import make_env
-    from seqrank.feedback.sources import make_source
+    from seqrank.training.feedback_parts import teacher_source
     from seqrank.training.trainer import check_fits
 
     env = make_env(config.task, config.seed)
     try:
         runtime = check_fits(config, env)
         if config.teacher_spec.kind == "replay":  # (`label online` brings its own source)
-            make_source(config.teacher, config.overlap).check_compatible(
-                config.task, env.obs_dim, env.act_dim
-            )
+            teacher_source(config).check_compatible(config.task, env.obs_dim, env.act_dim)
     finally:
         env.close()
     return runtime

@@ -12,12 +12,13 @@ from stable_baselines3.common.env_util import is_wrapped
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
+from seqrank.config import TrainConfig
 from seqrank.envs import SimEnv, canonical_task, make_env
 from seqrank.envs.gym_env import GymEnv
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.session import FeedbackSource
-from seqrank.feedback.sources import make_source
 from seqrank.sb3.envs import action_dim, observation_dim
+from seqrank.training.feedback_parts import teacher_source
 
 GYM_PRESETS = "gym:Pendulum-v1"  # whose presets an environment object's feedback starts from
 
@@ -88,11 +89,12 @@ def task_names(env: Any) -> tuple[str, str]:
 
 
 def make_teacher(
-    teacher: str | FeedbackSource | Callable[..., Any], obs_dim: int, overlap: float = 0.1
+    teacher: str | FeedbackSource | Callable[..., Any], obs_dim: int, config: TrainConfig
 ) -> FeedbackSource | None:
-    """The source of a teacher value; None for `human` (the labelling page's)."""
+    """The source of a teacher value (a name: `config.teacher`, read with its crowd
+    settings); None for `human` (the labelling page's)."""
     if isinstance(teacher, str):
-        return None if teacher == "human" else make_source(teacher, overlap)
+        return None if teacher == "human" else teacher_source(config)
     if hasattr(teacher, "ask_session"):
         return teacher  # type: ignore[return-value]
     if callable(teacher):

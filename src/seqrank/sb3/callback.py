@@ -137,7 +137,7 @@ class PreferenceFeedback(BaseCallback):
         task = describe_task(env, options["n_envs"], config.seed)
         if task.episode_length is not None:
             check_episode_fits(config, task.episode_length, task.has_terminals)
-        source = make_teacher(teacher, task.obs_dim, config.overlap)
+        source = make_teacher(teacher, task.obs_dim, config)
         opened = None
         if source is None:  # the person at the labelling page
             from seqrank.sb3.page import open_page

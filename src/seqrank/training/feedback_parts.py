@@ -20,6 +20,15 @@ from seqrank.training.reward_phase import RewardLearning, RewardSettings
 from seqrank.training.sessions import FeedbackSessions, Schedule
 
 
+def teacher_source(config: TrainConfig) -> FeedbackSource:
+    """The source `config.teacher` names, with a crowd's evidence settings (the overlap,
+    its adaptive part, closure checks); ValueError for `human` (the page brings its own)."""
+    from seqrank.feedback.sources import make_source
+
+    checks = bool(config.closure_checks)
+    return make_source(config.teacher, config.overlap, config.overlap_until, checks)
+
+
 def session_plan(config: TrainConfig) -> SessionPlan:
     """How the run's sessions are cut, chosen and checked."""
     return SessionPlan(

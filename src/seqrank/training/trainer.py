@@ -20,7 +20,6 @@ from seqrank.episodes import EpisodeStore
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.session import FeedbackSource
-from seqrank.feedback.sources import make_source
 from seqrank.training.agent_factory import make_agent
 from seqrank.training.backbones import BACKBONES, UpdateParts
 from seqrank.training.checkpoint import load_checkpoint, save_checkpoint
@@ -36,6 +35,7 @@ from seqrank.training.feedback_parts import (
     make_reward_learning,
     make_reward_model,
     make_sessions,
+    teacher_source,
 )
 from seqrank.training.finetune import refill_for_part, start_from
 from seqrank.training.loop import PhaseTimer, Progress, run_loop
@@ -82,13 +82,7 @@ class Trainer:
         self.replay = ReplayBuffer(kept + config.steps, obs_dim, act_dim, device, storage, train_on)
         self.episodes = EpisodeStore(config.episodes_kept)
         self.labels = LabelStore(config.crowd_weighting.value)
-        self.source = (
-            source
-            if source is not None
-            else make_source(
-                config.teacher, config.overlap, config.overlap_until, bool(config.closure_checks)
-            )
-        )
+        self.source = source if source is not None else teacher_source(config)
         self.source.check_compatible(config.task, obs_dim, act_dim)
         self.rng = np.random.default_rng(np.random.SeedSequence(config.seed))
         self.generator = torch.Generator().manual_seed(config.seed)
