@@ -4,28 +4,20 @@ development-only dependency of the script: its side is not run here.)"""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import sys
 from argparse import Namespace
-from pathlib import Path
 
 import pytest
 
 from seqrank.cli import main
-
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "sac_vs_sb3.py"
+from support.scripts import load_script
 
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("sac_vs_sb3", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["sac_vs_sb3"] = module  # its dataclass looks its module up
-    spec.loader.exec_module(module)
-    yield module
+    yield load_script("sac_vs_sb3")
     del sys.modules["sac_vs_sb3"]
 
 

@@ -5,9 +5,7 @@ from its checkpoint, and the SAC and dataset commands of a medium-replay grid va
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +13,7 @@ import pytest
 
 from seqrank.cli import build_parser
 from support.offline import LINE, write_dataset
+from support.scripts import load_script
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "offline_grid.py"
 GRID = f"""
@@ -37,18 +36,9 @@ device = "cpu"
 """
 
 
-def load_script():
-    spec = importlib.util.spec_from_file_location("offline_grid", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["offline_grid"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def grid_module():
-    return load_script()
+    return load_script("offline_grid")
 
 
 @pytest.fixture(scope="module")

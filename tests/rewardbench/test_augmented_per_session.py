@@ -3,22 +3,16 @@ and theory's expectation is the paper's for root (D.6: 91.61 at 100 questions)."
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "augmented_per_session.py"
+from support.scripts import load_script
 
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("augmented_per_session", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("augmented_per_session")
 
 
 def test_theory_matches_the_papers_random_order_expectation_for_root(script):

@@ -3,16 +3,12 @@ finished runs skipped, folders `seqrank report` collects."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 from seqrank.report.collect import collect_runs
+from support.scripts import load_script
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "sb3_evidence.py"
-spec = importlib.util.spec_from_file_location("sb3_evidence", SCRIPT)
-evidence = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(evidence)
+evidence = load_script("sb3_evidence")
 
 TASK = "support.sb3_envs:make_line"
 TINY = ["--task", TASK, "--steps", "600", "--chunk", "300", "--max-feedback", "20", "--tiny"]

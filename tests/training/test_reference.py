@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -14,16 +12,11 @@ from rich.console import Console
 from seqrank import reference
 from seqrank.cli.train import _print_summary
 from support.runs import run, tiny_config
-
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "make_reference.py"
+from support.scripts import load_script
 
 
 def make_reference_script():
-    spec = importlib.util.spec_from_file_location("make_reference", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("make_reference")
 
 
 def test_a_run_summary_shows_the_measured_true_reward_return_at_its_step_or_says_none(
