@@ -140,14 +140,40 @@ def start_team(args: list[str], names: tuple[str, ...]) -> tuple[subprocess.Pope
     return process, addresses
 
 
-def bare_team(directory: Path, names: list[str], reassign_after: float, overlap: float = 0.0):
+def bare_team(
+    directory: Path,
+    names: list[str],
+    reassign_after: float,
+    overlap: float = 0.0,
+    overlap_until: int = 0,
+):
     """A team's hub with no clips and no driver: the test asks its sessions itself."""
     from seqrank.labelling.db import LabelDB
     from seqrank.labelling.human import PageSettings
 
     hub = Hub(LabelDB.in_dir(directory), PageSettings(0.0, "tester", None))
-    open_team(hub, names, overlap, reassign_after)
+    open_team(hub, names, overlap, reassign_after, overlap_until)
     return hub
+
+
+def answering(
+    hub: Hub, name: str, choose: Callable[..., str], done: threading.Event
+) -> threading.Thread:
+    """`name` answers whatever the team's tables give them, until `done`, in a thread (join
+    it before the database closes)."""
+    tables = hub.crowd.tables
+
+    def run() -> None:
+        while not done.is_set():
+            question = tables.claim(name)
+            if question is None:
+                time.sleep(0.005)
+            else:
+                tables.record_answer(question, choose(question), 5.0, name)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
 
 
 def team_request(scheme: str, questions: int, people: int, spare: int = 1):

@@ -21,6 +21,7 @@ from seqrank.cli.label_study import add_study, run_study
 from seqrank.cli.options import (
     Parser,
     add_run_options,
+    int_between,
     number_between,
     positive,
     problem_with_flags,
@@ -29,6 +30,7 @@ from seqrank.cli.options import (
 )
 from seqrank.cli.train import prepare_run, say_finished
 from seqrank.errors import UsageError
+from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.training.stopping import stop_on_signals
 
@@ -108,7 +110,15 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument(
         "--seed", type=seed_number, default=0, help="seeds the rollouts and the segments drawn (0)"
     )
-    offline.add_argument(
+    _add_team(offline)
+    offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
+    offline.set_defaults(setting_flags=setting_flags(offline))
+    server_options(offline)
+
+
+def _add_team(parser: argparse.ArgumentParser) -> None:
+    """`label offline`'s team: its names and how much of its answers is asked again."""
+    parser.add_argument(
         "--annotators",
         default="",
         metavar="NAMES",
@@ -116,15 +126,21 @@ def _add_offline(modes: Any) -> None:
         "address of their own, the operator a page of their own (/operator); names of ASCII "
         "letters, digits, '-', '_' and '.', starting with a letter, 'operator' reserved",
     )
-    offline.add_argument(
+    parser.add_argument(
         "--overlap",
         type=number_between(0.0, 1.0),
         default=OVERLAP,
         help="with --annotators: the share of answers also asked of a second annotator (0.1)",
     )
-    offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
-    offline.set_defaults(setting_flags=setting_flags(offline))
-    server_options(offline)
+    parser.add_argument(
+        "--overlap-until",
+        type=int_between(0, 10_000),
+        default=EVIDENCE_UNTIL,
+        metavar="N",
+        help="with --annotators: every answer of a member with fewer than N answers shared "
+        "with somebody else is also asked of two others; 0: the share --overlap only "
+        f"({EVIDENCE_UNTIL})",
+    )
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
@@ -175,11 +191,15 @@ def _offline_options(args: argparse.Namespace) -> Any:
             f"accepted: 1 to {episode}"
         )
     team = check_annotator_names(args.annotators, "--annotators") if args.annotators else ()
-    if not team and args.overlap != OVERLAP:
-        raise ValueError(
-            f"--overlap {args.overlap} acts on a team's answers; one person answers here: "
-            "leave it out, or name a team with --annotators"
-        )
+    for flag, value, default in (
+        ("--overlap", args.overlap, OVERLAP),
+        ("--overlap-until", args.overlap_until, EVIDENCE_UNTIL),
+    ):
+        if not team and value != default:
+            raise ValueError(
+                f"{flag} {value} acts on a team's answers; one person answers here: "
+                "leave it out, or name a team with --annotators"
+            )
     if args.dataset is not None:
         _check_dataset_budget(args, length, team)
     return OfflineOptions(
@@ -195,6 +215,7 @@ def _offline_options(args: argparse.Namespace) -> Any:
         team,
         args.overlap,
         args.dataset,
+        args.overlap_until,
     )
 
 
@@ -245,7 +266,10 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
         if options.annotators:
             from seqrank.labelling.crowd_source import open_team
 
-            open_team(hub, options.annotators, options.overlap, args.reassign_after)
+            open_team(
+                hub, options.annotators, options.overlap, args.reassign_after,
+                options.overlap_until,
+            )  # fmt: skip
         record_offline_settings(hub.db, settings)
         with stop_on_signals(hub.stop.set, say) as stop:
             server = serve(hub, args, say)
@@ -303,7 +327,9 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
             if config.team:
                 from seqrank.labelling.crowd_source import open_team
 
-                open_team(hub, config.team, config.overlap, args.reassign_after)
+                open_team(
+                    hub, config.team, config.overlap, args.reassign_after, config.overlap_until
+                )
             return human_trainer(hub, "online", not args.no_wait, say)(config, run)
         except BaseException:
             if hub.renderer is not None:

@@ -68,13 +68,11 @@ def check_crowd(config: TrainConfig) -> None:
                 "online --annotators ...`, or a simulated crowd (crowd:oracle+noisy)"
             )
         check_annotator_names(config.annotators, setting("annotators"))
-        # (the page asks a fixed share again until it calls `feedback.overlap`; issue 49)
-        adaptive = [f for f in fields(config) if f.name in ("overlap_until", "closure_checks")]
-        for name in (f.name for f in adaptive if getattr(config, f.name) != f.default):
+        if config.closure_checks:  # (the page asks others the asked pair itself)
             raise SettingError(
-                f"{setting(name)} {getattr(config, name)}: the labelling page's team is "
-                f"asked a share {setting('overlap')} of its answers again, not yet "
-                "adaptively: leave it out (a simulated crowd takes it)"
+                f"{setting('closure_checks')} {config.closure_checks}: the labelling page asks "
+                "others about the pair a member answered, not the pairs their chain inferred: "
+                "leave it out (a simulated crowd takes it)"
             )
     if kind == "crowd" or config.annotators:
         return

@@ -28,6 +28,7 @@ from seqrank.envs import canonical_task, make_env
 from seqrank.envs.recorder import EpisodeRecorder
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.checking import Recheck, contradicts_itself
+from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -180,6 +181,9 @@ class OfflineOptions:
     annotators: tuple[str, ...] = ()  # a team sharing the sessions out (empty: one person)
     overlap: float = 0.1  # a team's share of answers also asked of a second annotator
     dataset: str | None = None  # an offline dataset whose episodes are labelled (no rollout)
+    # a team: every answer of a member with fewer answers shared with somebody else is
+    # asked again of two others (`seqrank.feedback.overlap`)
+    overlap_until: int = EVIDENCE_UNTIL
 
 
 def rollout_episodes(options: OfflineOptions, say: Say) -> EpisodeStore:

@@ -53,6 +53,22 @@ UNANSWERED = (
     "WHERE a.question_id IS NULL AND c.withdrawn_at IS NULL"
 )
 
+# whether the claimant holds (or held) a question on the same pair of the session: nobody
+# gives two of the opinions on one pair
+HOLDS_PAIR = (
+    "SELECT 1 FROM crowd_questions c2 JOIN questions q2 ON q2.id = c2.question_id "
+    "WHERE q2.run = q.run AND q2.session = q.session AND q2.first = q.first "
+    "AND q2.second = q.second AND c2.annotator = ?"
+)
+# each pair of a run's sessions that two or more people answered (skips left out), with
+# whether `annotator` is one of them
+SHARED_PAIRS = (
+    "SELECT SUM(a.annotator = ?) > 0 AS theirs FROM answers a "
+    "JOIN crowd_questions c ON c.question_id = a.question_id "
+    "JOIN questions q ON q.id = a.question_id WHERE q.run = ? AND a.answer != 'skip' "
+    "GROUP BY q.session, q.first, q.second HAVING COUNT(DISTINCT a.annotator) > 1"
+)
+
 
 class NotYours(Exception):
     """The question is another annotator's to answer."""
@@ -177,6 +193,23 @@ class CrowdTables:
         assert found is not None
         return found
 
+    def posed(self, run: str, session: int, index: int) -> bool:
+        """Whether the session's question stored under `index` was put to the team."""
+        return bool(
+            self.db.rows(
+                "SELECT 1 FROM crowd_questions c JOIN questions q ON q.id = c.question_id "
+                "WHERE q.run = ? AND q.session = ? AND q.idx = ?",
+                run, session, index,
+            )
+        )  # fmt: skip
+
+    def shared_answers(self, run: str, annotator: str) -> int:
+        """How many of `annotator`'s answers in `run` somebody else answered too (the
+        evidence their reliability rests on; it never decreases)."""
+        sql = f"SELECT COUNT(*) AS n FROM ({SHARED_PAIRS}) WHERE theirs"
+        rows = self.db.rows(sql, annotator, run)
+        return int(rows[0]["n"])
+
     def assignment(self, question_id: int) -> Assignment | None:
         rows = self.db.rows("SELECT * FROM crowd_questions WHERE question_id = ?", question_id)
         if not rows:
@@ -204,9 +237,9 @@ class CrowdTables:
             ).fetchone()
             chains_too = "" if busy is not None else " OR c.chain >= 0"
             free = conn.execute(
-                f"{UNANSWERED} AND c.annotator IS NULL AND ((c.chain < 0 AND c.excluded != ?)"
-                f"{chains_too}) ORDER BY c.chain < 0, q.id LIMIT 1",
-                (annotator,),
+                f"{UNANSWERED} AND c.annotator IS NULL AND ((c.chain < 0 AND c.excluded != ? "
+                f"AND NOT EXISTS ({HOLDS_PAIR})){chains_too}) ORDER BY c.chain < 0, q.id LIMIT 1",
+                (annotator, annotator),
             ).fetchone()
             if free is None:
                 return None

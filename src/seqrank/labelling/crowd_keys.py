@@ -2,9 +2,10 @@
 
 The `questions` and `choices` tables key a session's rows by one integer. A team's row
 is a `ChainStep` (the k-th question, or choice, of a chain) or a `SecondOpinionOf` (the
-second opinion on a chain's question); `index` and `key_of` are the one encoding between
-them and the integer: `chain * CHAIN_STRIDE + k`, and `-(index + 1)` for a second opinion,
-as every stored team session already holds them.
+`nth` other opinion on a chain's question); `index` and `key_of` are the one encoding
+between them and the integer: `chain * CHAIN_STRIDE + k`, and `-(index + 1)` for the first
+other opinion, as every stored team session already holds them; the next ones (asked while
+a member's evidence is short, `seqrank.feedback.overlap`) `OPINION_STRIDE` further down.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 
 CHAIN_STRIDE = 100_000  # questions (or choices) a chain may make in one session
 SECOND_OPINIONS = -1  # the chain a second opinion is stored under in `crowd_questions`
+OPINION_STRIDE = 10**12  # between the nth and the (n+1)th opinions' indices (SQLite: 2**63)
 
 
 @dataclass(frozen=True)
@@ -33,13 +35,19 @@ class ChainStep:
 
 @dataclass(frozen=True)
 class SecondOpinionOf:
-    """The second opinion on the chain question `asked`."""
+    """Another person's opinion on the chain question `asked`: the first (`nth` 0), or the
+    next ones."""
 
     asked: ChainStep
+    nth: int = 0
+
+    def __post_init__(self) -> None:
+        if self.nth < 0 or self.asked.index >= OPINION_STRIDE:
+            raise ValueError(f"no opinion {self.nth} on chain question {self.asked.index}")
 
     @property
     def index(self) -> int:
-        return -(self.asked.index + 1)
+        return -(self.nth * OPINION_STRIDE + self.asked.index + 1)
 
 
 QuestionKey = ChainStep | SecondOpinionOf
@@ -48,7 +56,8 @@ QuestionKey = ChainStep | SecondOpinionOf
 def key_of(index: int) -> QuestionKey:
     """The key a stored index encodes."""
     if index < 0:
-        return SecondOpinionOf(_step(-index - 1))
+        nth, asked = divmod(-index - 1, OPINION_STRIDE)
+        return SecondOpinionOf(_step(asked), nth)
     return _step(index)
 
 

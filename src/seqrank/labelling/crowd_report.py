@@ -70,6 +70,7 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
         "chains": _chains(hub, rows),
         "curve": [{"step": step, "eval_return": value} for step, value in view.curve],
         "overlap": team.overlap,
+        "overlap_until": team.overlap_until,
         "reassign_after_s": team.reassign_after,
     }
 

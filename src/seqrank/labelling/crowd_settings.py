@@ -15,6 +15,9 @@ class CrowdSettings:
     tables: CrowdTables
     overlap: float = 0.1  # share of answers also asked of a second annotator
     reassign_after: float = 60.0  # seconds a question waits before it is handed over
+    # every answer of an annotator with fewer answers shared with somebody else is asked
+    # again of two others (`seqrank.feedback.overlap`); 0: the share `overlap` only
+    overlap_until: int = 0
 
     @property
     def annotators(self) -> list[str]:

@@ -6,8 +6,11 @@ whoever is free first, who then owns the chain) and waits for the answer. A ques
 unanswered for `reassign_after` seconds is withdrawn and its chain cut: what the chain had
 left to ask is handed over as a new chain (`crowd_handover`), which starts afresh from a
 new first segment (so a chain never mixes people) and goes to the first annotator free.
-Second opinions are posed beside the chains, to anybody but the first answer's author, and
-never waited for: those unanswered when the chains are done are withdrawn.
+Other opinions on an answer are posed beside the chains, to anybody but its author (and
+nobody gives two on one pair): two others while the author's answers shared with somebody
+else are fewer than `overlap_until`, then one at the share `overlap`
+(`seqrank.feedback.overlap`). The chains never wait for them; once the chains are done, an
+opinion nobody takes within `reassign_after` is withdrawn.
 
 Replay after a kill is the one person's (`session_replay`): pools, chains, choices,
 questions and hand-overs are stored before they are used, each under its key
@@ -32,6 +35,7 @@ from typing import TYPE_CHECKING
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
 from seqrank.feedback.crowd_record import SecondOpinion
+from seqrank.feedback.overlap import CHECKERS, needs_second_opinion
 from seqrank.feedback.schemes import Ask, SessionRecord, scheme_has_defender, segments_needed
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.access import OPERATOR
@@ -56,10 +60,17 @@ if TYPE_CHECKING:
     from fastapi import APIRouter
 
 
-def open_team(hub: Hub, names: Sequence[str], overlap: float, reassign_after: float) -> None:
+def open_team(
+    hub: Hub,
+    names: Sequence[str],
+    overlap: float,
+    reassign_after: float,
+    overlap_until: int = 0,
+) -> None:
     """Make `hub` a team's page: each annotator with their own token (kept in the database,
     so that a resumed run's addresses stay the same), the main token the operator's; the
-    questions pending when the server stopped wait `reassign_after` again from now."""
+    questions pending when the server stopped wait `reassign_after` again from now.
+    `overlap_until`: the adaptive overlap (`CrowdSettings`)."""
     hub.check_mode_open()  # before the tokens are stored
     tables = CrowdTables(hub.db)
     tables.restart_clocks()  # the time the server was down is nobody's delay
@@ -69,7 +80,9 @@ def open_team(hub: Hub, names: Sequence[str], overlap: float, reassign_after: fl
     tokens = {name: stored[name] for name in names}
     if hub.settings.token is None:  # a team's page always has tokens, on loopback too
         hub.settings.token = secrets.token_urlsafe(24)
-    settings = CrowdSettings(tokens, hub.settings.token, tables, overlap, reassign_after)
+    settings = CrowdSettings(
+        tokens, hub.settings.token, tables, overlap, reassign_after, overlap_until
+    )
     hub.choose_mode(Team(settings))
 
 
@@ -288,13 +301,24 @@ class _CrowdSession:
     def _maybe_second_opinion(
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
     ) -> None:
+        """Pose the other opinions on an answer: two while its author's answers shared
+        with somebody else are fewer than `overlap_until`, else one at the share
+        `overlap`. Replayed, it poses what it posed before and nothing more: a shared count
+        never decreases, so a later decision never asks for more."""
         team = self.team
-        if answer is Answer.SKIP or len(team.annotators) < 2 or team.overlap <= 0:
+        if answer is Answer.SKIP or len(team.annotators) < 2:
             return
-        if stream(self.seed, Stream.SECOND_OPINION, key.index).random() >= team.overlap:
-            return
-        question = self._store_question(SecondOpinionOf(key), first, second)
-        self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
+        draw = stream(self.seed, Stream.SECOND_OPINION, key.index).random()
+        shared = {author: self.tables.shared_answers(self.run, author)}
+        wanted = 0
+        if needs_second_opinion(shared, author, team.overlap_until, team.overlap, draw):
+            short = shared[author] < team.overlap_until
+            wanted = min(CHECKERS if short else 1, len(team.annotators) - 1)
+        for nth in range(CHECKERS):
+            opinion = SecondOpinionOf(key, nth)
+            if nth < wanted or self.tables.posed(self.run, self.session, opinion.index):
+                question = self._store_question(opinion, first, second)
+                self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
 
     def _continuation(self, chain: ChainRow, asked: _Asked) -> ChainRow | None:
         used = {s for a in asked.answers for s in (a.first, a.second)}
@@ -306,12 +330,14 @@ class _CrowdSession:
 
     # ---- the session's end -------------------------------------------------------
     def second_opinions(self) -> list[SecondOpinion]:
-        """The second opinions given: those nobody took are withdrawn, those taken are
-        waited for (as a chain's question is, up to `reassign_after`)."""
+        """The other opinions given: those nobody takes within `reassign_after` of the
+        chains' end are withdrawn, those taken are waited for (as a chain's question is,
+        up to `reassign_after`)."""
+        deadline = time.time() + self.team.reassign_after
         for open_question in self.tables.unanswered(self.run, self.session):
             if open_question.chain != SECOND_OPINIONS:
                 continue
-            if open_question.annotator is None:
+            if not self._claimed_by(open_question.question, deadline):
                 self.tables.withdraw_if_unanswered(open_question.question.id)
                 continue
             with suppress(_Cut):
@@ -328,6 +354,18 @@ class _CrowdSession:
             q = Question(key.asked.index, first, second, self.defender)
             opinions.append(SecondOpinion(AnsweredQuestion(q, Answer(answer)), who))
         return opinions
+
+    def _claimed_by(self, question: StoredQuestion, deadline: float) -> bool:
+        """Whether somebody takes (or answers) the unheld `question` before `deadline`."""
+        with self.db.changed:
+            while not self.hub.stop.is_set() and time.time() < deadline:
+                found = self.tables.assignment(question.id)
+                if found is None or found.withdrawn:
+                    return False
+                if found.annotator is not None or self.db.answer(question.id) is not None:
+                    return True
+                self.db.changed.wait(0.5)
+        return False
 
     def person_seconds(self) -> dict[str, float]:
         """Each annotator's answering time in the session (their latencies added up)."""

@@ -18,7 +18,8 @@ from seqrank.dirs import DirLock, check_folder, missing_folders, remove_made
 from seqrank.labelling.db import DB_NAME, LabelDB
 
 SETTINGS_KEY = "offline_settings"
-CONTINUABLE = ("sessions", "annotators", "overlap")  # settings a rerun may change (the team too)
+# settings a rerun may change (the team too)
+CONTINUABLE = ("sessions", "annotators", "overlap", "overlap_until")
 
 
 def take_directory(directory: Path, what: str = "labelling directory") -> DirLock:

@@ -47,6 +47,12 @@ function showChains(chains) {
   }
 }
 
+// Who is asked again: two others while a member's shared answers are fewer than N, then a share.
+function overlapText(view) {
+  const share = `overlap ${view.overlap}`;
+  return view.overlap_until > 0 ? `two others until ${view.overlap_until} shared, then ${share}` : share;
+}
+
 // The session's questions answered over all its chains; a handed-over chain's questions are
 // its parent's unanswered ones, so only chains that continue none count toward the total.
 function sessionProgress(chains) {
@@ -77,7 +83,7 @@ async function refresh() {
     const response = await fetch("/api/operator", { credentials: "same-origin" });
     if (!response.ok) throw new Error(`error ${response.status}`);
     const view = await response.json();
-    $("progress").textContent = `${view.scheme || "-"} · ${view.phase} · ${sessionProgress(view.chains)}overlap ${view.overlap} · hand-over after ${view.reassign_after_s} s`;
+    $("progress").textContent = `${view.scheme || "-"} · ${view.phase} · ${sessionProgress(view.chains)}${overlapText(view)} · hand-over after ${view.reassign_after_s} s`;
     $("message").textContent = view.message;
     showAnnotators(view.annotators);
     showChains(view.chains);
