@@ -9,6 +9,10 @@ With `augment checked` the scheme re-checks answers and the closure limits unrep
 answers on a path, by default with `seqrank train`'s settings (`Recheck()`); a cell's
 sessions are one teacher's, in order, so once the teacher has contradicted themselves the
 next sessions ask big answers twice more, as in a training run.
+A crowd (`crowd:oracle+noisy`) gathers evidence of its members' reliability as in a run
+(`CrowdSettings`: the overlap, its adaptive part, closure checks), and each member's
+estimate is the one training and the operator page use
+(`seqrank.feedback.peer_reliability`), from the same evidence as training's label store.
 The teacher's margin is the mean segment return of the pool (the stand-in for "mean
 return of recent episodes scaled to segment length"). Truth for error rates is the
 undiscounted segment return.
@@ -26,14 +30,38 @@ from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.crowd import CrowdSource
-from seqrank.feedback.reliability import estimate_reliability, evidence_rows
+from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.peer_reliability import estimate_from_peers
+from seqrank.feedback.reliability import evidence_rows
 from seqrank.feedback.schemes import SessionRecord, get_scheme, uniform_choice
 from seqrank.feedback.session import SessionRequest
-from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher, scripted_config
+from seqrank.feedback.sources import make_source
+from seqrank.feedback.teachers import CROWD_PREFIX, ScriptedTeacher, scripted_config
 from seqrank.types import Answer, AnsweredQuestion
 
 SEGMENT_LENGTH = 50
 AUGMENTS = ("full", "checked")
+# an answer as reliability evidence: (first, second) made unique per run, answer,
+# annotator, the model's P(first) (none: there is no model here)
+EvidenceRow = tuple[int, int, str, str, None]
+
+
+@dataclass(frozen=True)
+class CrowdSettings:
+    """How a crowd gathers evidence of its members' reliability, with `seqrank train`'s
+    defaults: `overlap` a share of answers asked again, every answer of a member with fewer
+    than `overlap_until` shared answers asked again, `closure_checks` second opinions on
+    inferred pairs (`seqrank.feedback.sources.make_source`)."""
+
+    overlap: float = 0.1
+    overlap_until: int = EVIDENCE_UNTIL
+    closure_checks: bool = False
+
+    def source(self, teacher: str) -> CrowdSource:
+        """The crowd a `crowd:...` value names, as a run builds it."""
+        crowd = make_source(teacher, self.overlap, self.overlap_until, self.closure_checks)
+        assert isinstance(crowd, CrowdSource), teacher
+        return crowd
 
 
 def synthetic_segments(count: int, horizon: int, rng: np.random.Generator) -> np.ndarray:
@@ -131,9 +159,13 @@ def run_crowd_sessions(
     rng: np.random.Generator,
     recheck: Recheck | None,
 ) -> tuple[list[AugmentationStats], tuple[dict[str, object], ...]]:
-    """A crowd's sessions, and each member's estimated reliability (from overlaps and
-    contradictions: no reward model here) beside their true error rate."""
-    stats, evidence, truth = [], [], []
+    """A crowd's sessions, and each member's estimated reliability (from the other
+    members' answers and their own contradictions: no reward model here) beside their true
+    error rate."""
+    stats: list[AugmentationStats] = []
+    evidence: list[EvidenceRow] = []  # in training's order: answers, then implied orders
+    answered: list[EvidenceRow] = []
+    truth: list[bool] = []  # of each answer, whether its first segment is the better
     for session in range(sessions):
         rewards = synthetic_segments(2 * questions, SEGMENT_LENGTH, rng)
         returns = rewards.sum(axis=1)
@@ -145,32 +177,43 @@ def run_crowd_sessions(
         _, record = crowd.ask_session(request)
         path_unchecked = None if recheck is None else recheck.path_unchecked
         stats.append(augment(record.answers, returns.tolist(), path_unchecked).stats)
-        rows = _crowd_rows(record, session * len(rewards))
-        evidence += rows
-        truth += [returns[f - session * len(rewards)] > returns[s - session * len(rewards)]
-                  for f, s, _, _, _ in rows]  # fmt: skip
+        offset = session * len(rewards)
+        given, implied = _crowd_rows(record, offset)
+        evidence += given + implied
+        answered += given
+        truth += [returns[f - offset] > returns[s - offset] for f, s, _, _, _ in given]
         recheck = recheck and recheck.after(record.answers)
-    return stats, _member_rows(crowd, evidence, truth)
+    return stats, _member_rows(crowd, evidence, answered, truth)
 
 
-def _crowd_rows(record: SessionRecord, offset: int) -> list[tuple[int, int, str, str, None]]:
-    """The session's answers as reliability evidence, segment ids made unique per run."""
+def _crowd_rows(record: SessionRecord, offset: int) -> tuple[list[EvidenceRow], list[EvidenceRow]]:
+    """The session's evidence, segment ids made unique per run: the answers given (second
+    opinions too), and the orders that closure checks found implied by an owner's chain,
+    which count as the owner's answers (as `LabelStore` counts them in training)."""
     assert record.crowd is not None
     crowd = record.crowd
     asked = [*zip(record.answers, crowd.answered_by, strict=True)]
     asked += [(o.answered, o.annotator) for o in crowd.second_opinions]
-    return [(a.first + offset, a.second + offset, a.answer.value, who, None) for a, who in asked]
+    given = [(a.first + offset, a.second + offset, a.answer.value, who, None) for a, who in asked]
+    checks = [(o.answered, *o.implied) for o in crowd.second_opinions if o.implied is not None]
+    implied = [(a.first + offset, a.second + offset, s.value, who, None) for a, who, s in checks]
+    return given, implied
 
 
 def _member_rows(
-    crowd: CrowdSource, evidence: list[tuple[int, int, str, str, None]], truth: list[bool]
+    crowd: CrowdSource,
+    evidence: list[EvidenceRow],
+    answered: list[EvidenceRow],
+    truth: list[bool],
 ) -> tuple[dict[str, object], ...]:
-    estimates = estimate_reliability(evidence_rows(evidence))
+    """Each member's estimate from all the evidence, beside the true error rate of the
+    strict answers they gave (an implied order is evidence, not an answer given)."""
+    estimates = estimate_from_peers(evidence_rows(evidence))
     rows = []
     for member in crowd.members:
         strict = [
             (answer == "first") != first_better
-            for (_, _, answer, who, _), first_better in zip(evidence, truth, strict=True)
+            for (_, _, answer, who, _), first_better in zip(answered, truth, strict=True)
             if who == member.name and answer in ("first", "second")
         ]
         found = estimates.get(member.name)
@@ -194,16 +237,16 @@ def simulate_cell(
     rng: np.random.Generator,
     augment_name: str = "full",
     checking: Recheck | None = None,
-    overlap: float = 0.1,
+    crowd_settings: CrowdSettings = CrowdSettings(),
 ) -> CellResult:
     """`teacher_name`: a scripted teacher as `--teacher` takes it (a preset, optionally with
     knobs: `mistake,eps_mistake=0.2`), or a crowd of them (`crowd:oracle+noisy`, its
-    answers shared out as in a run, `overlap` of them asked again of a second member);
+    answers shared out and asked again as in a run, by `crowd_settings`);
     `checking` sets `augment checked`'s re-checks and trusted paths (default Recheck())."""
     recheck = None if augment_name == "full" else checking or Recheck()
     members: tuple[dict[str, object], ...] = ()
-    if teacher_name.startswith("crowd:"):
-        crowd = CrowdSource(parse_teacher(teacher_name).members, overlap)
+    if teacher_name.startswith(CROWD_PREFIX):
+        crowd = crowd_settings.source(teacher_name)
         stats, members = run_crowd_sessions(scheme, crowd, questions, sessions, rng, recheck)
     else:
         teacher = ScriptedTeacher(scripted_config(teacher_name))
@@ -243,7 +286,7 @@ def simulate(
     on_cell: Callable[[CellResult], None] | None = None,
     augments: Sequence[str] = ("full",),
     checking: Recheck | None = None,
-    overlap: float = 0.1,
+    crowd_settings: CrowdSettings = CrowdSettings(),
 ) -> list[CellResult]:
     """Every (scheme, augmentation, teacher) cell. Each (scheme, teacher) has its own
     stream derived from `seed`, which its augmentations share (common random numbers)."""
@@ -254,7 +297,7 @@ def simulate(
         for augment_name in augments:
             rng = np.random.default_rng(stream)
             cell = simulate_cell(
-                scheme, teacher, questions, sessions, rng, augment_name, checking, overlap
+                scheme, teacher, questions, sessions, rng, augment_name, checking, crowd_settings
             )
             results.append(cell)
             if on_cell is not None:

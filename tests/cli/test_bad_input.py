@@ -311,6 +311,22 @@ CASES = [
     (["simulate", "--teachers", "crowd:oracle++noisy"], "an empty crowd member; write members"),
     (["simulate", "--teachers", "crowd:oracle,name=a+noisy,name=a"], "member name 'a' must be"),
     (["simulate", "--overlap", "1.5"], "argument --overlap: 1.5 is out of range; accepted: 0 to 1"),
+    (["simulate", "--overlap-until", "-1"], "argument --overlap-until: -1 is out of range; acce"),
+    (["simulate", "--overlap-until", "many"], "argument --overlap-until: 'many' is not a whole"),
+    (
+        ["simulate", "--closure-checks", "2"],
+        "argument --closure-checks: 2 is out of range; accepted",
+    ),
+    # a crowd's settings without a crowd: refused as `train` refuses them for one teacher
+    (
+        ["simulate", "--overlap", "0.5", "--teachers", "oracle"],
+        "--overlap 0.5 acts on a crowd's answers; --teachers names no crowd ('oracle'): leave",
+    ),
+    (["simulate", "--overlap-until", "40"], "--overlap-until 40 acts on a crowd's answers; --te"),
+    (
+        ["simulate", "--closure-checks", "1", "--overlap-until", "0", "--teachers", "noisy"],
+        "--overlap-until 0 and --closure-checks 1 act on a crowd's answers; --teachers names no",
+    ),
     # reward-bench
     (["reward-bench", "pool", "--task", "nope", "--out", "p.npz"], "unknown task 'nope'"),
     (["reward-bench", "pool", "--out", "{dir}"], "pool file {dir} is a folder"),

@@ -255,7 +255,9 @@ def test_one_teachers_labels_are_never_weighted():
 
 
 def member_estimates(teacher: str, seed: int, augment: str, overlap: float) -> dict[str, dict]:
-    """`seqrank simulate`'s crowd cell: 20 sequential sessions of 30 questions."""
+    """`seqrank simulate`'s crowd cell: 20 sequential sessions of 30 questions, each
+    member estimated as training estimates them (`peer_reliability`, not this file's
+    estimator, since simulate uses it)."""
     crowd = CrowdSource(parse_teacher(teacher).members, overlap)
     recheck = Recheck() if augment == "checked" else None
     rng = np.random.default_rng(seed)

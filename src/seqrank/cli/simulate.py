@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict
+from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 
 from seqrank import console_tables
+from seqrank.cli.option_help import MEANINGS
 from seqrank.cli.options import int_between, names, number_between, seed_number
 from seqrank.cli.reward_bench import teacher_list
 from seqrank.errors import UsageError
@@ -22,7 +23,7 @@ from seqrank.feedback.teachers import (
     parse_teacher,
     scripted_config,
 )
-from seqrank.simulate import AUGMENTS, simulate
+from seqrank.simulate import AUGMENTS, CrowdSettings, simulate
 
 # Recheck fields that a run's loop sets, not the user: left out of the printed settings
 _RUN_STATE = ("contradicted", "model_returns")
@@ -59,7 +60,7 @@ def add_parser(commands: Any) -> None:
         "comma-separated: a knob=value part belongs to the teacher before it, e.g. "
         "oracle,mistake,eps_mistake=0.2; ';' also separates teachers, e.g. "
         "'oracle;beta=1'; or a simulated crowd, crowd:oracle+mistake+noisy, whose "
-        "members' estimated reliability is printed (default: every preset)",
+        "members' estimated reliability (as a run estimates it) is printed (default: every preset)",
     )
     sim.add_argument(
         "--augment",
@@ -88,12 +89,22 @@ def add_parser(commands: Any) -> None:
 
 
 def _add_crowd(sim: argparse.ArgumentParser) -> None:
-    sim.add_argument(
-        "--overlap",
-        type=number_between(0.0, 1.0),
-        default=0.1,
-        help="a crowd's share of answers also asked of a second member (default: %(default)s)",
-    )
+    """A crowd teacher's evidence settings, as `seqrank train` takes them, with its
+    defaults and its help."""
+    defaults = CrowdSettings()
+    for flag, parse, default, metavar in (
+        ("--overlap", number_between(0.0, 1.0), defaults.overlap, "SHARE"),
+        ("--overlap-until", int_between(0, 10_000), defaults.overlap_until, "N"),
+        ("--closure-checks", int_between(0, 1), int(defaults.closure_checks), "0|1"),
+    ):
+        meaning = MEANINGS[flag.removeprefix("--").replace("-", "_")]
+        sim.add_argument(
+            flag,
+            type=parse,
+            default=default,
+            metavar=metavar,
+            help=f"{meaning} (default: %(default)s)",
+        )
 
 
 def _add_checking(sim: argparse.ArgumentParser) -> None:
@@ -112,6 +123,25 @@ def _add_checking(sim: argparse.ArgumentParser) -> None:
         )
 
 
+def _crowd_settings(args: argparse.Namespace) -> CrowdSettings:
+    """The crowd's settings; UsageError when one is set off its default and no teacher is
+    a crowd (it would change nothing), as `seqrank train` refuses them for one teacher."""
+    crowd = CrowdSettings(args.overlap, args.overlap_until, bool(args.closure_checks))
+    changed = [
+        f"--{f.name.replace('_', '-')} {getattr(args, f.name)}"
+        for f in fields(crowd)
+        if getattr(crowd, f.name) != f.default
+    ]
+    if changed and not any(t.startswith(CROWD_PREFIX) for t in args.teachers):
+        many = len(changed) > 1
+        raise UsageError(
+            f"{' and '.join(changed)} {'act' if many else 'acts'} on a crowd's answers; "
+            f"--teachers names no crowd ({', '.join(map(repr, args.teachers))}): leave "
+            f"{'them' if many else 'it'} out, or add one (crowd:oracle+mistake+noisy)"
+        )
+    return crowd
+
+
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.dirs import check_folder
 
@@ -120,6 +150,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         checking = Recheck(args.recheck_gain, args.recheck_twice_gain, args.path_unchecked)
     except ValueError as problem:
         raise UsageError(str(problem)) from None
+    crowd = _crowd_settings(args)
     for teacher in args.teachers:  # each checked before anything runs
         try:
             if not teacher.startswith(CROWD_PREFIX):
@@ -139,7 +170,7 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             on_cell=lambda cell: progress.advance(task),
             augments=args.augment,
             checking=checking,
-            overlap=args.overlap,
+            crowd_settings=crowd,
         )
     args.out.mkdir(parents=True, exist_ok=True)
     payload = {
@@ -149,7 +180,9 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
             "schemes": args.schemes,
             "teachers": args.teachers,
             "augment": args.augment,
-            "overlap": args.overlap,
+            "overlap": crowd.overlap,
+            "overlap_until": crowd.overlap_until,
+            "closure_checks": int(crowd.closure_checks),
             "recheck": {k: v for k, v in asdict(checking).items() if k not in _RUN_STATE},
             "seed": args.seed,
         },
