@@ -47,6 +47,9 @@ class CrowdWeighting(StrEnum):
     RELIABILITY = "reliability"  # each label the probability that its annotator is right
     NONE = "none"  # every answer as given
     DROP = "drop"  # a flagged annotator's labels left out (results/crowd/, issue 49)
+    # as drop, and each question of a member flagged before a session asked again of one
+    # who is not (`CrowdSource`, `SessionRequest.distrusted`; issue 49, item 3)
+    REASK = "reask"
 
 
 class StopOn(StrEnum):

@@ -53,7 +53,9 @@ MEANINGS = {
     "closure_checks": "a crowd: 1 asks a second opinion on a pair the owner's chain inferred "
     "(one answer checks several of theirs), where there is one; 0: on the asked pair",
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
-    "is right), drop (a flagged annotator's labels left out) or none (answers as given)",
+    "is right), drop (a flagged annotator's labels left out), reask (as drop, and each "
+    "question of an annotator flagged before a session asked again of one who is not: "
+    "person-time, not questions) or none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "
     "address of their own; ASCII letters, digits, '-', '_' and '.', starting with a letter, "
     "'operator' reserved)",

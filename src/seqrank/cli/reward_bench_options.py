@@ -64,7 +64,8 @@ def add_grid_axes(grid: argparse.ArgumentParser) -> None:
         type=names([w.value for w in CrowdWeighting], "weighting"),
         default=["none"],
         help="a crowd teacher's labels: reliability (each the probability that its member "
-        "is right), drop (a flagged member's labels left out), none (as answered), "
+        "is right), drop (a flagged member's labels left out), reask (as drop, and a "
+        "flagged member's questions asked again of someone else), none (as answered), "
         "comma-separated (none)",
     )
 

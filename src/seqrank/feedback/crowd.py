@@ -7,7 +7,12 @@ The choices this module makes (issue 37; docs/guides/team.md):
   share no segment, transitivity is only ever drawn through one person's answers;
 - a share `overlap` of the answered questions is asked again of a second person; those
   answers measure agreement and train the model as asked pairs, but never enter a closure;
-- a crowd of one asks exactly what a single teacher asks (same pool, same draws).
+- a crowd of one asks exactly what a single teacher asks (same pool, same draws);
+- under `crowd_weighting` reask, each question of a member flagged before the session
+  (`SessionRequest.distrusted`) is asked again of one who is not (the fewest shared
+  answers first, as `overlap.checkers` picks), unless a second opinion of someone trusted
+  has it already: an asked pair of the re-asker's, evidence like any second opinion, and
+  never in a closure (a flagged member's chain is what the closure drew from).
 
 `CrowdSource` is the simulated crowd of scripted members (`--teacher crowd:...`), whose
 answer times give the session's length with its people answering side by side.
@@ -24,7 +29,7 @@ import numpy as np
 from seqrank.episodes import Segments
 from seqrank.feedback.closure_checks import chain_inferences, pair_to_check
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
-from seqrank.feedback.overlap import adaptive_picks
+from seqrank.feedback.overlap import adaptive_picks, checkers
 from seqrank.feedback.schemes import (
     Ask,
     SessionRecord,
@@ -231,6 +236,7 @@ class CrowdSource:
         owners = [m.name for m in self.members[: len(chains)]]
         record = merge_chains(request.scheme, records, owners)
         seconds = self._second_opinions(record, rngs, asker)
+        seconds += self._reasks(record, seconds, request.distrusted, rngs[0], asker)
         times = {m.name: answers[m.name] * m.seconds for m in self.members}
         return request.segments, with_opinions(request, record, seconds, times)
 
@@ -258,6 +264,39 @@ class CrowdSource:
             answered = AnsweredQuestion(question, answer)
             opinions.append(SecondOpinion(answered, names[person], implied))
         return opinions
+
+    def _reasks(
+        self,
+        record: SessionRecord,
+        opinions: Sequence[SecondOpinion],
+        distrusted: frozenset[str],
+        rng: np.random.Generator,
+        asker: Callable[[int, np.random.Generator], Ask],
+    ) -> list[SecondOpinion]:
+        """Each question of a distrusted member asked again of a trusted one, but those a
+        trusted member's second opinion has already; none while nobody, or everybody, is
+        distrusted. Skipped questions too: the flagged member's skip is no answer either."""
+        assert record.crowd is not None
+        names = [m.name for m in self.members]
+        trusted = [name for name in names if name not in distrusted]
+        if not distrusted or not trusted:
+            return []
+        covered = {
+            o.answered.question.index
+            for o in opinions
+            if o.implied is None and o.annotator in trusted
+        }
+        reasks = []
+        for k, asked in enumerate(record.answers):
+            owner = record.crowd.answered_by[k]
+            if owner not in distrusted or k in covered:
+                continue
+            person = checkers(self.shared, owner, trusted, rng)[0]
+            for name in (owner, person):
+                self.shared[name] = self.shared.get(name, 0) + 1
+            answer = asker(names.index(person), rng)(asked.first, asked.second)
+            reasks.append(SecondOpinion(replace(asked, answer=answer), person, reask=True))
+        return reasks
 
     def _picks(self, record: SessionRecord, rng: np.random.Generator) -> list[tuple[int, int]]:
         """(answer index, the second person's member index): adaptive, or as before."""

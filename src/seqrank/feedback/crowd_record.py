@@ -13,11 +13,14 @@ from seqrank.types import Answer, AnsweredQuestion
 class SecondOpinion:
     """A question of someone's chain asked again of `annotator`; or, a closure check
     (`seqrank.feedback.closure_checks`), a pair the closure inferred from someone's chain,
-    with `implied`: (whose chain, the answer their answers imply)."""
+    with `implied`: (whose chain, the answer their answers imply). `reask`: asked because
+    the chain's owner was flagged before the session (`crowd_weighting` reask); the label
+    that trains in place of theirs."""
 
     answered: AnsweredQuestion
     annotator: str
     implied: tuple[str, Answer] | None = None
+    reask: bool = False
 
 
 @dataclass(frozen=True)

@@ -30,9 +30,10 @@ CrowdAnswer = tuple[int, int, str, str, float | None]
 class LabelStore:
     """`weighting` "reliability": a crowd's labels train as the probability that their
     annotator is right; "drop": the labels of a flagged annotator (their answers and what
-    the closure infers from them) are left out of reward training; "none": as answered.
-    Reliability is estimated from the other people's answers
-    (`seqrank.feedback.peer_reliability`)."""
+    the closure infers from them) are left out of reward training; "reask": as drop, and
+    the crowd asks a member flagged before a session's questions again of someone else
+    (`distrusted`), whose answers train; "none": as answered. Reliability is estimated
+    from the other people's answers (`seqrank.feedback.peer_reliability`)."""
 
     def __init__(self, weighting: str = "none") -> None:
         self.segments: list[np.ndarray] = []  # (H, obs+act) each
@@ -133,10 +134,20 @@ class LabelStore:
         estimates = estimate_reliability(evidence_rows(self.crowd_answers))
         return {name: r for name, r in estimates.items() if name != MODEL}
 
+    def distrusted(self) -> frozenset[str]:
+        """Under `reask`, the annotators flagged so far, whose questions the next session
+        asks again of someone else (`SessionRequest.distrusted`); nobody under another
+        weighting, or when everybody is flagged (nobody is trusted more)."""
+        if self.weighting != "reask" or not self.crowd_answers:
+            return frozenset()
+        trust = self.reliability()
+        flagged = frozenset(name for name, r in trust.items() if r.flagged)
+        return frozenset() if flagged == set(trust) else flagged
+
     def kept(self) -> list[bool]:
-        """Which pairs reward training fits: all, or (`drop`) all but a flagged
+        """Which pairs reward training fits: all, or (`drop`, `reask`) all but a flagged
         annotator's."""
-        if self.weighting != "drop" or not any(self.annotator):
+        if self.weighting not in ("drop", "reask") or not any(self.annotator):
             return [True] * len(self.labels)
         flagged = {name for name, r in self.reliability().items() if r.flagged}
         kept = [name not in flagged for name in self.annotator]

@@ -47,6 +47,9 @@ class SessionRequest:
         model_returns: a crowd's sessions, once the model is fit: its predicted return of
             each pooled segment, to estimate the annotators' reliability.
         chains: asked as this many chains side by side (a crowd: one per person).
+        distrusted: a crowd's members flagged before the session, under `crowd_weighting`
+            reask (`LabelStore.distrusted`): each of their questions is asked again of a
+            member who is not; empty otherwise.
 
     Examples:
         >>> import numpy as np, seqrank
@@ -81,6 +84,8 @@ class SessionRequest:
     # segment, from which the annotators' reliability is estimated (`feedback.reliability`)
     model_returns: tuple[float, ...] | None = None
     chains: int = 1  # asked as this many chains side by side (a crowd: one per person)
+    # a crowd's members whose questions are asked again of someone else (reask)
+    distrusted: frozenset[str] = frozenset()
 
 
 class FeedbackSource(Protocol):

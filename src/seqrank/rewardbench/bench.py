@@ -110,6 +110,7 @@ class _Tally:
         self.asked = self.answered = self.inferred = self.inferred_wrong = 0
         self.strict = self.asked_wrong = self.clips = 0
         self.seconds = self.person_seconds = 0.0
+        self.reasks = 0  # a crowd's questions asked again because their owner was flagged
         self.session_inferred: list[int] = []
         self.session_clips: list[int] = []
 
@@ -118,6 +119,7 @@ class _Tally:
         if record.crowd is not None:
             self.seconds += record.crowd.seconds
             self.person_seconds += record.crowd.person_seconds
+            self.reasks += sum(o.reask for o in record.crowd.second_opinions)
 
     def add(self, stats_: AugmentationStats) -> None:
         self.asked += stats_.asked
@@ -225,6 +227,7 @@ class _CellRun:
             )  # fmt: skip
             if self.cell.order == "collection":  # the segments as sorted, in that order
                 request = replace(request, chooser=in_order_choice)
+            request = replace(request, distrusted=labels.distrusted())  # (reask's)
             segments, record = self.source.ask_session(request)
             closure = self.cell.augment != "none"
             stored = store_session(segments, record, labels, request, closure)
@@ -350,8 +353,10 @@ def _crowd_measures(labels: LabelStore, tally: _Tally) -> dict[str, Any]:
                 "estimate": old.estimate, "low": old.low, "high": old.high,
                 "answers": old.answers, "flagged": old.flagged,
             }  # fmt: skip
+    reasks = {"reasks": tally.reasks} if labels.weighting == "reask" else {}
     return {
         "crowd_minutes": tally.seconds / 60.0,
         "person_minutes": tally.person_seconds / 60.0,
+        **reasks,
         "members": members,
     }

@@ -30,7 +30,8 @@ def method(row: dict[str, Any]) -> str:
     under noise-aware augmentation, `+no-closure` without closure, `+stop-asked` or
     `+stop-never` for the stop rule, `+collection` for segments in collection order, and
     `+weighted` for a crowd's labels weighted by reliability, `+dropped` for a flagged
-    member's labels left out. The names of the defaults
+    member's labels left out, `+reasked` for those left out and their questions asked
+    again of someone else. The names of the defaults
     (full closure, the stop over all labels, uniform order, a crowd's labels as answered)
     are bare, so a report's baseline is the default. Rows written before these axes are
     plain, full, stopped over all, uniform and weighted."""
@@ -43,7 +44,8 @@ def method(row: dict[str, Any]) -> str:
     weighting = row.get("weighting", "reliability")
     if not weighs_labels(row.get("teacher", "")) or weighting == "none":
         return name
-    return name + {"reliability": "+weighted", "drop": "+dropped"}[weighting]
+    suffixes = {"reliability": "+weighted", "drop": "+dropped", "reask": "+reasked"}
+    return name + suffixes[weighting]
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:

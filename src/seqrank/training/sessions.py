@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,7 +94,7 @@ class FeedbackSessions:
         # B-Pref's margin: the mean return of recent episodes, scaled to a segment
         recent = float(self.episodes.recent_returns(10).mean())
         margin = recent * self.plan.segment_length / s.episode_length
-        return prepare_session(
+        request = prepare_session(
             self.plan,
             questions,
             self.episodes,
@@ -106,3 +106,7 @@ class FeedbackSessions:
             contradicted=self.labels is not None and self.labels.teacher_contradicted(),
             model_fit=not first,
         )
+        if self.labels is None:
+            return request
+        # (reask: whose questions the crowd asks again of someone else; nobody otherwise)
+        return replace(request, distrusted=self.labels.distrusted())
