@@ -254,8 +254,28 @@ CASES = [
     ([*OFFLINE, "--overlap", "0.5"], "--overlap 0.5 acts on a team's answers; one person answers"),
     ([*ONLINE, "--crowd-weighting", "reliability"], "--crowd-weighting acts on a crowd's answe"),
     (
-        [*ONLINE, "--annotators", "alice,bob", "--overlap-until", "40"],
-        "--overlap-until 40: the labelling page's team is asked a share --overlap of its answ",
+        [*ONLINE, "--annotators", "alice,bob", "--closure-checks", "1"],
+        "--closure-checks 1: the labelling page asks others about the pair a member answered",
+    ),
+    ([*OFFLINE, "--overlap-until", "20"], "--overlap-until 20 acts on a team's answers; one per"),
+    (
+        [*OFFLINE, "--annotators", "alice,bob", "--overlap-until", "-3"],
+        "--overlap-until: -3 is out of range; accepted",
+    ),
+    (
+        [*ONLINE, "--annotators", "alice,bob", "--crowd-weighting", "reask"],
+        "--crowd-weighting reask: the labelling page's team does not yet ask a flagged member",
+    ),
+    # label: gold pairs (issue 49)
+    ([*OFFLINE, "--gold", "{labels}"], "--gold {labels} acts on a team's answers; one person"),
+    ([*OFFLINE, "--annotators", "a,b", "--gold", "gold.jsonl"], "gold file gold.jsonl does not"),
+    (
+        [*OFFLINE, "--annotators", "a,b", "--gold", "{labels}"],
+        "gold file {labels} holds segments of 20 steps; this run asks about 50",
+    ),
+    (
+        [*ONLINE, "--annotators", "a,b", "--gold", "{labels_wide}"],
+        "gold file {labels_wide} is of task None; this run's is",
     ),
     ([*ONLINE, "--port", "-1"], "argument --port: -1 is out of range; accepted: 0 to 65535"),
     ([*STUDY, "--seed", "-5"], "error: --seed must be a whole number from 0 to 4294967295"),

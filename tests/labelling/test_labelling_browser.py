@@ -520,7 +520,7 @@ def test_the_fine_tuning_study_in_the_browser(tmp_path):
 def test_two_annotators_answer_side_by_side_in_two_browsers_and_the_operator_sees_both(
     tmp_path,
 ):
-    from seqrank.labelling.crowd_source import open_team, team_addresses
+    from seqrank.labelling.crowd_team import open_team, team_addresses
 
     directory = tmp_path / "labels"
     hub = open_hub(directory, TASK, ServerOptions(port=0, countdown_s=0.0))

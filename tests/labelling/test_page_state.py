@@ -74,7 +74,7 @@ def test_readers_see_a_survey_with_its_run_and_a_session_with_its_scheme():
 
 
 def test_who_answers_is_chosen_once_before_the_page_asks(tmp_path):
-    from seqrank.labelling.crowd_source import open_team
+    from seqrank.labelling.crowd_team import open_team
     from seqrank.labelling.db import LabelDB
     from seqrank.labelling.human import Hub, NotATeam, PageSettings
 

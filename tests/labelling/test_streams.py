@@ -31,6 +31,8 @@ BEFORE = {
     Stream.CHAIN_DEFENDER_SIDE: 8,
     Stream.SECOND_OPINION: 9,
     Stream.QUESTION_SIDE: 10,
+    Stream.GOLD: 11,  # (named from the start)
+    Stream.GOLD_ORDER: 12,
 }
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from fastapi.testclient import TestClient
 
 from seqrank.labelling.app import OfflineOptions, ServerOptions, open_hub, run_offline
-from seqrank.labelling.crowd_source import open_team
+from seqrank.labelling.crowd_team import open_team
 from seqrank.labelling.human import Hub, Stopped
 from support.pages import TASK, page_client
 

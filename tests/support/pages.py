@@ -167,7 +167,7 @@ class Participant(threading.Thread):
 
 def team_question_for_bob(directory: Path) -> Hub:
     """alice and bob at a page whose one question (id 1) is posed to bob."""
-    from seqrank.labelling.crowd_source import open_team
+    from seqrank.labelling.crowd_team import open_team
 
     hub = waiting_question_hub(directory)
     open_team(hub, ["alice", "bob"], 0.0, 60.0)

@@ -18,11 +18,10 @@ from seqrank.cli.label_page import (
     server_options,
 )
 from seqrank.cli.label_study import add_study, run_study
+from seqrank.cli.label_team import OVERLAP, add_gold, add_team, gold_for
 from seqrank.cli.options import (
     Parser,
     add_run_options,
-    int_between,
-    number_between,
     positive,
     problem_with_flags,
     seed_number,
@@ -34,7 +33,6 @@ from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.training.stopping import stop_on_signals
 
-OVERLAP = 0.1  # `label offline`: a team's share of questions asked twice (as TrainConfig)
 ROLLOUT_EPISODES = 4  # `label offline`: episodes rolled out when none are given
 
 
@@ -66,6 +64,7 @@ def _add_online(modes: Any) -> None:
         action="store_true",
         help="keep training while a session after the first is being answered",
     )
+    add_gold(online)
     server_options(online)
 
 
@@ -110,37 +109,11 @@ def _add_offline(modes: Any) -> None:
     offline.add_argument(
         "--seed", type=seed_number, default=0, help="seeds the rollouts and the segments drawn (0)"
     )
-    _add_team(offline)
+    add_team(offline)
+    add_gold(offline)
     offline.add_argument("--out", type=Path, help="labelling directory (default under seqrank-out)")
     offline.set_defaults(setting_flags=setting_flags(offline))
     server_options(offline)
-
-
-def _add_team(parser: argparse.ArgumentParser) -> None:
-    """`label offline`'s team: its names and how much of its answers is asked again."""
-    parser.add_argument(
-        "--annotators",
-        default="",
-        metavar="NAMES",
-        help="a team sharing the sessions out, comma-separated (alice,bob): each gets an "
-        "address of their own, the operator a page of their own (/operator); names of ASCII "
-        "letters, digits, '-', '_' and '.', starting with a letter, 'operator' reserved",
-    )
-    parser.add_argument(
-        "--overlap",
-        type=number_between(0.0, 1.0),
-        default=OVERLAP,
-        help="with --annotators: the share of answers also asked of a second annotator (0.1)",
-    )
-    parser.add_argument(
-        "--overlap-until",
-        type=int_between(0, 10_000),
-        default=EVIDENCE_UNTIL,
-        metavar="N",
-        help="with --annotators: every answer of a member with fewer than N answers shared "
-        "with somebody else is also asked of two others; 0: the share --overlap only "
-        f"({EVIDENCE_UNTIL})",
-    )
 
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
@@ -251,6 +224,7 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
     from seqrank.labelling.human import Stopped
 
     options = _offline_options(args)
+    gold = gold_for(args, options.task, options.segment_length, options.annotators)
     _check_address(args)  # the task and settings first: a wrong task outweighs a busy port
     default_out = (
         args.policy_run / "offline-labels"
@@ -264,11 +238,11 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
         check_offline_settings(directory, settings)
         hub = open_hub(directory, options.task, page_options(args))
         if options.annotators:
-            from seqrank.labelling.crowd_source import open_team
+            from seqrank.labelling.crowd_team import open_team
 
             open_team(
                 hub, options.annotators, options.overlap, args.reassign_after,
-                options.overlap_until,
+                options.overlap_until, gold,
             )  # fmt: skip
         record_offline_settings(hub.db, settings)
         with stop_on_signals(hub.stop.set, say) as stop:
@@ -322,14 +296,17 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     holder: dict[str, Any] = {}
 
     def make(config: Any, run: RunDir) -> Any:
+        if "gold" not in holder:  # a resumed run: its own task's
+            holder["gold"] = gold_for(args, config.task, config.segment_length, config.team)
         holder["hub"] = hub = open_hub(run.path, config.task, page_options(args))
         try:
             if config.team:
-                from seqrank.labelling.crowd_source import open_team
+                from seqrank.labelling.crowd_team import open_team
 
                 open_team(
-                    hub, config.team, config.overlap, args.reassign_after, config.overlap_until
-                )
+                    hub, config.team, config.overlap, args.reassign_after,
+                    config.overlap_until, holder.get("gold"),
+                )  # fmt: skip
             return human_trainer(hub, "online", not args.no_wait, say)(config, run)
         except BaseException:
             if hub.renderer is not None:
@@ -339,6 +316,7 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
 
     def check(config: Any) -> None:
         check_clips(config.task)
+        holder["gold"] = gold_for(args, config.task, config.segment_length, config.team)
         _check_address(args)
 
     started = prepare_run(args, err, make, resolve_device, check)

@@ -24,6 +24,19 @@ class SecondOpinion:
 
 
 @dataclass(frozen=True)
+class GoldAnswer:
+    """An answer to a gold pair, a pair whose order the operator knows
+    (`seqrank.labelling.gold`): `pair` names it (its stored segments' ids, outside every
+    session's pool), `known` is its order and `said` the member's answer, both about `pair`
+    in its order. Evidence only: a gold answer trains nothing."""
+
+    pair: tuple[int, int]
+    known: Answer
+    said: Answer
+    annotator: str
+
+
+@dataclass(frozen=True)
 class CrowdRecord:
     answered_by: tuple[str, ...]  # the annotator of each of the record's answers
     second_opinions: tuple[SecondOpinion, ...] = ()
@@ -32,6 +45,7 @@ class CrowdRecord:
     model_first: tuple[float | None, ...] = ()
     seconds: float = 0.0  # the session's length, its people answering side by side
     person_seconds: float = 0.0  # everybody's answering time added up
+    gold: tuple[GoldAnswer, ...] = ()  # answers to gold pairs given during the session
 
     def annotators(self) -> list[str]:
         """Everyone who answered in the session, in order of first answer."""

@@ -11,7 +11,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
 from seqrank.feedback.crowd_record import CrowdRecord
-from seqrank.feedback.peer_reliability import estimate_from_peers
+from seqrank.feedback.peer_reliability import GOLD, estimate_from_peers
 from seqrank.feedback.reliability import (
     MODEL,
     Reliability,
@@ -117,6 +117,10 @@ class LabelStore:
         for asked, annotator, model in zip(asked_all, everyone, models, strict=True):
             first, second = offset[asked.first], offset[asked.second]
             self.crowd_answers.append((first, second, asked.answer.value, annotator, model))
+        for gold in crowd.gold:  # (ids below every store id: a gold pair is no stored pair)
+            first, second = -gold.pair[0] - 1, -gold.pair[1] - 1
+            self.crowd_answers.append((first, second, gold.said.value, gold.annotator, None))
+            self.crowd_answers.append((first, second, gold.known.value, GOLD, None))
         for opinion, model in zip(crowd.second_opinions, models[len(answers) :], strict=True):
             if opinion.implied is not None:  # a closure check: the chain's owner's answer
                 owner, implied = opinion.implied

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from seqrank.labelling.crowd_keys import ChainStep, key_of
+from seqrank.labelling.crowd_keys import GOLD_CHECKS, GOLD_RUN, ChainStep, key_of
 from seqrank.labelling.db import (
     AnswerConflict,
     LabelDB,
@@ -195,13 +195,8 @@ class CrowdTables:
 
     def posed(self, run: str, session: int, index: int) -> bool:
         """Whether the session's question stored under `index` was put to the team."""
-        return bool(
-            self.db.rows(
-                "SELECT 1 FROM crowd_questions c JOIN questions q ON q.id = c.question_id "
-                "WHERE q.run = ? AND q.session = ? AND q.idx = ?",
-                run, session, index,
-            )
-        )  # fmt: skip
+        question = self.db.question_at(run, session, index)
+        return question is not None and self.assignment(question.id) is not None
 
     def shared_answers(self, run: str, annotator: str) -> int:
         """How many of `annotator`'s answers in `run` somebody else answered too (the
@@ -299,7 +294,7 @@ class CrowdTables:
         """(number, of): the question's place in its chain (1-based) and the chain's
         questions; a second opinion is (1, 1)."""
         key = key_of(question.index)
-        if not isinstance(key, ChainStep):
+        if not isinstance(key, ChainStep) or question.run == GOLD_RUN:
             return 1, 1
         rows = self.db.rows(
             "SELECT budget FROM crowd_chains WHERE run = ? AND session = ? AND chain = ?",
@@ -340,9 +335,13 @@ class CrowdTables:
         return found is not None and found.withdrawn
 
     def unanswered(self, run: str, session: int) -> list[Assignment]:
+        """The session's questions put to the team and not answered nor withdrawn, with
+        the gold questions given after its answers."""
         rows = self.db.rows(
-            f"{UNANSWERED} AND q.run = ? AND q.session = ? ORDER BY q.id", run, session
-        )
+            f"{UNANSWERED} AND ((q.run = ? AND q.session = ?) OR (q.run = ? AND q.idx IN "
+            "(SELECT id FROM questions WHERE run = ? AND session = ?))) ORDER BY q.id",
+            run, session, GOLD_RUN, run, session,
+        )  # fmt: skip
         return [a for a in (self.assignment(r["id"]) for r in rows) if a is not None]
 
     def answered_by(self) -> list[tuple[StoredQuestion, str, int, str, float]]:
@@ -355,6 +354,25 @@ class CrowdTables:
         return [
             (question_from_row(r), r["who"], r["chain"], r["answer"], r["latency_ms"]) for r in rows
         ]
+
+    def gold_given(self, annotator: str) -> int:
+        """How many gold questions `annotator` was given (`seqrank.labelling.gold`)."""
+        rows = self.db.rows(
+            "SELECT COUNT(*) AS n FROM crowd_questions WHERE chain = ? AND annotator = ?",
+            GOLD_CHECKS, annotator,
+        )  # fmt: skip
+        return int(rows[0]["n"])
+
+    def gold_answers(self, run: str, session: int) -> list[tuple[StoredQuestion, str, str, float]]:
+        """The answered gold questions given after answers of the session: (question,
+        annotator, answer, latency); a gold question's index is its occasion's id."""
+        rows = self.db.rows(
+            "SELECT g.*, a.annotator AS who, a.answer, a.latency_ms FROM questions g "
+            "JOIN answers a ON a.question_id = g.id JOIN questions t ON t.id = g.idx "
+            "WHERE g.run = ? AND t.run = ? AND t.session = ? ORDER BY g.id",
+            GOLD_RUN, run, session,
+        )  # fmt: skip
+        return [(question_from_row(r), r["who"], r["answer"], r["latency_ms"]) for r in rows]
 
     def answer_rows(self) -> list[sqlite3.Row]:
         """Every answered crowd question: its pair, chain, choice, author and times."""

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 CHAIN_STRIDE = 100_000  # questions (or choices) a chain may make in one session
 SECOND_OPINIONS = -1  # the chain a second opinion is stored under in `crowd_questions`
+GOLD_CHECKS = -2  # ... and a gold question (`seqrank.labelling.gold`)
+GOLD_RUN = "(gold)"  # the run gold segments and questions are stored under (no run's name)
 OPINION_STRIDE = 10**12  # between the nth and the (n+1)th opinions' indices (SQLite: 2**63)
 
 

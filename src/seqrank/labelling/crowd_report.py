@@ -12,9 +12,10 @@ from typing import Any
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import HTMLResponse
 
-from seqrank.feedback.peer_reliability import estimate_from_peers
+from seqrank.feedback.peer_reliability import GOLD, estimate_from_peers
 from seqrank.feedback.reliability import Reliability, evidence_rows
 from seqrank.labelling.access import OPERATOR
+from seqrank.labelling.crowd_keys import GOLD_CHECKS
 from seqrank.labelling.human import Hub
 from seqrank.labelling.server import STATIC
 
@@ -44,8 +45,9 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
     """The operator page's data; `base`: the server's address, for the team's links."""
     team, view = hub.crowd, hub.state.now()
     rows = team.tables.answer_rows()
-    reliability = _reliability(rows)
-    kappas = _kappas(rows)
+    gold = _gold_known(rows, team.gold)
+    reliability = _reliability(rows, gold)
+    kappas = _kappas([r for r in rows if r["chain"] != GOLD_CHECKS])
     handed = team.tables.withdrawn_count()
     people = []
     for name, token in team.tokens.items():
@@ -58,6 +60,7 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
                 "handed_over": handed.get(name, 0),
                 "kappa": kappas.get(name),
                 **_reliability_fields(reliability.get(name)),
+                **_gold_fields(mine, gold),
             }
         )
     return {
@@ -88,11 +91,31 @@ def _pace(rows: list[Any]) -> dict[str, Any]:
     }
 
 
-def _reliability(rows: list[Any]) -> dict[str, Reliability]:
+def _reliability(
+    rows: list[Any], gold: dict[tuple[int, int], str] | None = None
+) -> dict[str, Reliability]:
     """Every annotator's reliability from the stored answers: the estimator whose flags
-    reward training acts on (`--crowd-weighting drop`), from the other people's answers."""
+    reward training acts on (`--crowd-weighting drop`), from the other people's answers
+    and the known order of the gold pairs answered (`gold`: pair -> "first"/"second")."""
     evidence = [(r["first"], r["second"], r["answer"], r["annotator"], None) for r in rows]
+    evidence += [(a, b, said, GOLD, None) for (a, b), said in (gold or {}).items()]
     return estimate_from_peers(evidence_rows(evidence))
+
+
+def _gold_known(
+    rows: list[Any], gold: tuple[tuple[int, int, bool], ...]
+) -> dict[tuple[int, int], str]:
+    """The known answer ("first" or "second") of each gold pair somebody answered."""
+    known = {(a, b): "first" if first else "second" for a, b, first in gold}
+    asked = {(r["first"], r["second"]) for r in rows if r["chain"] == GOLD_CHECKS}
+    return {pair: said for pair, said in known.items() if pair in asked}
+
+
+def _gold_fields(mine: list[Any], gold: dict[tuple[int, int], str]) -> dict[str, Any]:
+    """How many gold questions the annotator answered, and how many of them right."""
+    answered = [r for r in mine if r["chain"] == GOLD_CHECKS]
+    right = sum(gold.get((r["first"], r["second"])) == r["answer"] for r in answered)
+    return {"gold_answered": len(answered), "gold_right": right}
 
 
 def _reliability_fields(found: Reliability | None) -> dict[str, Any]:

@@ -1,5 +1,5 @@
 """A team's labelling page: its annotators with their tokens, and how work is shared out
-(`seqrank.labelling.crowd_source`)."""
+(`seqrank.labelling.crowd_team`, `seqrank.labelling.crowd_source`)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,9 @@ class CrowdSettings:
     # every answer of an annotator with fewer answers shared with somebody else is asked
     # again of two others (`seqrank.feedback.overlap`); 0: the share `overlap` only
     overlap_until: int = 0
+    # gold pairs (`seqrank.labelling.gold`): stored segment ids and whether the first is
+    # preferred; empty: none
+    gold: tuple[tuple[int, int, bool], ...] = ()
 
     @property
     def annotators(self) -> list[str]:

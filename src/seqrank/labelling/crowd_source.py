@@ -22,10 +22,8 @@ question over.
 
 from __future__ import annotations
 
-import secrets
 import threading
 import time
-from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass, field, replace
@@ -34,14 +32,15 @@ from typing import TYPE_CHECKING
 
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
-from seqrank.feedback.crowd_record import SecondOpinion
+from seqrank.feedback.crowd_record import GoldAnswer, SecondOpinion
 from seqrank.feedback.overlap import CHECKERS, needs_second_opinion
 from seqrank.feedback.schemes import Ask, SessionRecord, scheme_has_defender, segments_needed
 from seqrank.feedback.session import SessionRequest
-from seqrank.labelling.access import OPERATOR
-from seqrank.labelling.crowd_db import ChainRow, CrowdTables, NotYours
+from seqrank.labelling.crowd_db import ChainRow
 from seqrank.labelling.crowd_handover import continuation
 from seqrank.labelling.crowd_keys import (
+    GOLD_CHECKS,
+    GOLD_RUN,
     SECOND_OPINIONS,
     ChainStep,
     QuestionKey,
@@ -49,7 +48,8 @@ from seqrank.labelling.crowd_keys import (
     key_of,
 )
 from seqrank.labelling.crowd_settings import CrowdSettings
-from seqrank.labelling.db import StoredAnswer, StoredQuestion
+from seqrank.labelling.db import StoredQuestion
+from seqrank.labelling.gold import GOLD_SHARE
 from seqrank.labelling.human import Hub, Stopped
 from seqrank.labelling.page_state import Phase
 from seqrank.labelling.session_replay import StoredSession, open_session
@@ -57,93 +57,7 @@ from seqrank.labelling.streams import Stream, stream
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 if TYPE_CHECKING:
-    from fastapi import APIRouter
-
-
-def open_team(
-    hub: Hub,
-    names: Sequence[str],
-    overlap: float,
-    reassign_after: float,
-    overlap_until: int = 0,
-) -> None:
-    """Make `hub` a team's page: each annotator with their own token (kept in the database,
-    so that a resumed run's addresses stay the same), the main token the operator's; the
-    questions pending when the server stopped wait `reassign_after` again from now.
-    `overlap_until`: the adaptive overlap (`CrowdSettings`)."""
-    hub.check_mode_open()  # before the tokens are stored
-    tables = CrowdTables(hub.db)
-    tables.restart_clocks()  # the time the server was down is nobody's delay
-    known = tables.annotators()
-    tables.add_annotators({n: known.get(n) or secrets.token_urlsafe(18) for n in names})
-    stored = tables.annotators()
-    tokens = {name: stored[name] for name in names}
-    if hub.settings.token is None:  # a team's page always has tokens, on loopback too
-        hub.settings.token = secrets.token_urlsafe(24)
-    settings = CrowdSettings(
-        tokens, hub.settings.token, tables, overlap, reassign_after, overlap_until
-    )
-    hub.choose_mode(Team(settings))
-
-
-class Team:
-    """A team at the page (`human.PageMode`): each annotator answers the questions claimed
-    for them, the operator watches on `/operator`."""
-
-    def __init__(self, settings: CrowdSettings):
-        self.settings = settings
-
-    @property
-    def team(self) -> CrowdSettings:
-        return self.settings
-
-    def source(self, hub: Hub, run: str, seed: int) -> CrowdHumanSource:
-        return CrowdHumanSource(hub, self.settings, run, seed)
-
-    def tokens(self) -> tuple[tuple[str, str], ...]:
-        return tuple(self.settings.tokens.items())
-
-    def question_for(self, hub: Hub, who: str | None) -> StoredQuestion | None:
-        if who is None or who == OPERATOR:
-            return None
-        return self.settings.tables.claim(who)
-
-    def record_answer(
-        self, hub: Hub, question: StoredQuestion, choice: str, latency_ms: float, who: str | None
-    ) -> tuple[StoredAnswer, bool]:
-        if who == OPERATOR:
-            raise NotYours("the operator's token answers no questions")
-        return self.settings.tables.record_answer(question, choice, latency_ms, who or "")
-
-    def place(self, question: StoredQuestion, questions: int) -> tuple[int, int]:
-        return self.settings.tables.progress(question)  # a chain's k-th, or a second opinion
-
-    def routes(self, hub: Hub) -> list[APIRouter]:
-        from seqrank.labelling.crowd_report import operator_routes
-
-        return [operator_routes(hub)]
-
-    def may_export(self, who: str | None) -> bool:
-        return who == OPERATOR  # every answer is the operator's to read, not an annotator's
-
-    def still_asking(self, hub: Hub) -> bool:
-        return True  # a team's session leaves the asking phase itself when it is answered
-
-    def announce(
-        self, *, base: str, url: str, remote_base: str | None, remote_url: str | None
-    ) -> list[str]:
-        return [f"{who}'s page: {address}" for who, address in self.addresses(remote_base or base)]
-
-    def addresses(self, base: str) -> list[tuple[str, str]]:
-        """(who, address) of the operator page and of each annotator's page."""
-        rows = [("operator", f"{base}operator?token={self.settings.operator_token}")]
-        rows += [(name, f"{base}?token={token}") for name, token in self.settings.tokens.items()]
-        return rows
-
-
-def team_addresses(hub: Hub, base: str) -> list[tuple[str, str]]:
-    """(who, address) of the operator page and of each annotator's page."""
-    return Team(hub.crowd).addresses(base)
+    pass
 
 
 class _Cut(Exception):
@@ -192,7 +106,8 @@ class CrowdHumanSource:
         times = session.person_seconds()
         record = with_opinions(stored.request, record, opinions, times)
         assert record.crowd is not None
-        crowd = replace(record.crowd, seconds=time.time() - started)
+        gold = tuple(session.gold_answers())
+        crowd = replace(record.crowd, seconds=time.time() - started, gold=gold)
         self.hub.state.move(Phase.TRAINING, f"session {number} is answered: thank you")
         return stored.pool, replace(record, crowd=crowd)
 
@@ -264,6 +179,7 @@ class _CrowdSession:
             q = Question(len(asked.answers), first, second, self.defender)
             asked.answers.append(AnsweredQuestion(q, answer))
             self._maybe_second_opinion(key, first, second, answer, author)
+            self._maybe_gold(question, key, author)
             return answer
 
         return ask
@@ -320,6 +236,24 @@ class _CrowdSession:
                 question = self._store_question(opinion, first, second)
                 self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
 
+    def _maybe_gold(self, occasion: StoredQuestion, key: ChainStep, author: str) -> None:
+        """Now and then, give the author the next gold pair they have not been shown,
+        stored under the id of the answer it follows (so a replay finds it again)."""
+        gold = self.team.gold
+        if not gold or not author:
+            return
+        if stream(self.seed, Stream.GOLD, key.index).random() >= GOLD_SHARE:
+            return
+        question = self.db.question_at(GOLD_RUN, 0, occasion.id)
+        if question is None:
+            person = self.team.annotators.index(author) if author in self.team.tokens else 0
+            order = stream(0, Stream.GOLD_ORDER, person).permutation(len(gold))
+            a, b, _ = gold[order[self.tables.gold_given(author) % len(gold)]]
+            on_left = stream(self.seed, Stream.QUESTION_SIDE, occasion.id, 1).random() < 0.5
+            left, right = (a, b) if on_left else (b, a)
+            question = self.db.ensure_question(GOLD_RUN, 0, occasion.id, a, b, None, left, right)
+        self.tables.pose(question, GOLD_CHECKS, author, None)
+
     def _continuation(self, chain: ChainRow, asked: _Asked) -> ChainRow | None:
         used = {s for a in asked.answers for s in (a.first, a.second)}
         scheme, answered = self.request.scheme, len(asked.answers)
@@ -335,7 +269,7 @@ class _CrowdSession:
         up to `reassign_after`)."""
         deadline = time.time() + self.team.reassign_after
         for open_question in self.tables.unanswered(self.run, self.session):
-            if open_question.chain != SECOND_OPINIONS:
+            if open_question.chain >= 0:
                 continue
             if not self._claimed_by(open_question.question, deadline):
                 self.tables.withdraw_if_unanswered(open_question.question.id)
@@ -368,9 +302,21 @@ class _CrowdSession:
         return False
 
     def person_seconds(self) -> dict[str, float]:
-        """Each annotator's answering time in the session (their latencies added up)."""
+        """Each annotator's answering time in the session (their latencies added up, gold
+        questions' too)."""
         times: dict[str, float] = {}
         for question, who, _, _, latency in self.tables.answered_by():
             if question.run == self.run and question.session == self.session:
                 times[who] = times.get(who, 0.0) + latency / 1000.0
+        for _, who, _, latency in self.tables.gold_answers(self.run, self.session):
+            times[who] = times.get(who, 0.0) + latency / 1000.0
         return times
+
+    def gold_answers(self) -> list[GoldAnswer]:
+        """The answers to gold questions given after the session's answers."""
+        known = {(a, b): Answer.FIRST if first else Answer.SECOND for a, b, first in self.team.gold}
+        return [
+            GoldAnswer((q.first, q.second), known[q.first, q.second], Answer(said), who)
+            for q, who, said, _ in self.tables.gold_answers(self.run, self.session)
+            if (q.first, q.second) in known
+        ]

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.episodes import Segments
+from seqrank.labelling.crowd_keys import GOLD_RUN
 from seqrank.labelling.db_records import (
     CHOICES,
     PENDING_QUESTION_SQL,
@@ -143,13 +144,12 @@ class LabelDB:
                     "INSERT OR REPLACE INTO meta VALUES (?, ?)",
                     (_opinions_key(run, session), json.dumps(list(model_returns))),
                 )
-            ids = pool_ids if pool_ids is not None else list(range(len(segments.features)))
-            for row, pool_id in enumerate(ids):
-                conn.execute(
-                    "INSERT OR IGNORE INTO segments (run, session, pool_id, features, rewards, "
-                    "states, context) VALUES (?, ?, ?, ?, ?, ?, ?)",
-                    segment_values(run, session, pool_id, segments, row),
-                )
+            _insert_segments(conn, run, session, segments, pool_ids)
+
+    def store_segments(self, run: str, session: int, segments: Segments) -> None:
+        """Store segments outside any session's pool (pool ids 0, 1, ...; kept if stored)."""
+        with self._transaction() as conn:
+            _insert_segments(conn, run, session, segments, None)
 
     def model_returns(self, run: str, session: int) -> tuple[float, ...] | None:
         """The model's opinions stored with a session; None when it had none."""
@@ -228,6 +228,13 @@ class LabelDB:
             )
         return question
 
+    def question_at(self, run: str, session: int, index: int) -> StoredQuestion | None:
+        """The question stored under (run, session, index), if any."""
+        rows = self._rows(
+            "SELECT * FROM questions WHERE run = ? AND session = ? AND idx = ?", run, session, index
+        )
+        return question_from_row(rows[0]) if rows else None
+
     def question(self, question_id: int) -> StoredQuestion | None:
         rows = self._rows("SELECT * FROM questions WHERE id = ?", question_id)
         return question_from_row(rows[0]) if rows else None
@@ -300,7 +307,8 @@ class LabelDB:
     def answered_questions(
         self, run: str | None = None
     ) -> list[tuple[StoredQuestion, StoredAnswer]]:
-        where = "" if run is None else "WHERE q.run = ?"
+        # (gold questions train nothing: `seqrank.labelling.gold`)
+        where = f"WHERE q.run != '{GOLD_RUN}'" if run is None else "WHERE q.run = ?"
         rows = self._rows(
             "SELECT q.*, a.choice, a.answer, a.latency_ms, a.annotator, a.answered_at "
             f"FROM questions q JOIN answers a ON a.question_id = q.id {where} ORDER BY q.id",
@@ -338,6 +346,17 @@ class LabelDB:
                 (run, scheme, satisfaction, criteria, annotator, time.time()),
             )
             return cursor.rowcount == 1
+
+
+def _insert_segments(
+    conn: sqlite3.Connection, run: str, session: int, segments: Segments, ids: list[int] | None
+) -> None:
+    for row, pool_id in enumerate(ids if ids is not None else range(len(segments.features))):
+        conn.execute(
+            "INSERT OR IGNORE INTO segments (run, session, pool_id, features, rewards, "
+            "states, context) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            segment_values(run, session, pool_id, segments, row),
+        )
 
 
 def _opinions_key(run: str, session: int) -> str:

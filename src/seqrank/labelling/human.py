@@ -7,7 +7,7 @@ database: stored answers are given back at once and the first unanswered questio
 again, so nothing acknowledged is lost or asked twice.
 
 The page's `Hub` is what the driver and the server share. Who answers at the page, one
-person (`Solo`) or a team (`crowd_source.Team`), is its `mode`: chosen once, before the
+person (`Solo`) or a team (`crowd_team.Team`), is its `mode`: chosen once, before the
 page serves, and asked by everything that differs between the two.
 """
 

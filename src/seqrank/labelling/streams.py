@@ -21,6 +21,8 @@ class Stream(IntEnum):
     CHAIN_DEFENDER_SIDE = 8  # the side a chain's defender keeps (session seed, chain)
     SECOND_OPINION = 9  # whether an answer is asked of a second person (session seed, index)
     QUESTION_SIDE = 10  # a team's question: the side each segment is shown on (seed, index)
+    GOLD = 11  # whether a gold question follows an answer (session seed, index)
+    GOLD_ORDER = 12  # the order a member is shown the gold pairs in (0, the member's place)
 
 
 def stream(seed: int, name: Stream, *keys: int) -> np.random.Generator:

@@ -28,6 +28,7 @@ function showAnnotators(people) {
     cell(row, String(p.handed_over));
     cell(row, num(p.kappa, 2));
     cell(row, p.reliability === null ? "-" : `${num(p.reliability, 2)} [${num(p.low, 2)}, ${num(p.high, 2)}], ${p.rests_on} checked`);
+    cell(row, p.gold_answered ? `${p.gold_right} of ${p.gold_answered} right` : "-");
     cell(row, p.address, "address");
     body.appendChild(row);
   }

@@ -1,0 +1,113 @@
+"""Gold pairs at a team's page (issue 49): pairs whose order the operator knows, shown now
+and then to each member among their own questions, unannounced.
+
+A gold file is a label file (`seqrank.feedback.label_file`) of the same task and segment
+length, for instance one the operator answered with `seqrank label offline`; its strict
+answers ("first" or "second") are the gold pairs. Its segments must keep their physics
+states: the page renders their clips as it renders any other.
+
+After each answer of a chain, with probability `GOLD_SHARE`, its author is given the next
+gold pair they have not been shown (in an order of their own). The gold segments and
+questions are stored under the run `GOLD_RUN`, never in a session: they ask nothing of the
+budget, train nothing and are not exported as labels; their answers are reliability
+evidence beside the gold answer (`seqrank.feedback.peer_reliability.GOLD`), which counts
+against whoever contradicts it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from seqrank.episodes import Segments
+from seqrank.feedback.label_file import LabelFile, read_label_file
+from seqrank.labelling.crowd_keys import GOLD_RUN
+from seqrank.labelling.db import LabelDB
+
+GOLD_SHARE = 0.1  # a gold question after about one answer in ten, for each member
+GOLD_META = "gold_pairs"  # the stored pairs, as segment ids and the known order
+
+
+@dataclass(frozen=True)
+class GoldPairs:
+    """Gold pairs read from `source`: `pairs` are (row, row, first preferred) of `segments`."""
+
+    source: str
+    segments: Segments
+    pairs: tuple[tuple[int, int, bool], ...]
+
+
+def read_gold(path: Path, task: str, segment_length: int) -> GoldPairs:
+    """The gold pairs of the label file `path` for `task`; ValueError naming the file and
+    what is wrong (no file, another task or segment length, no strict answer, a pair
+    answered both ways, a segment without the physics states its clip needs)."""
+    where = f"gold file {path}"
+    if not Path(path).is_file():
+        raise ValueError(f"{where} does not exist")
+    labels = read_label_file(path)
+    header = labels.header
+    if header.get("task") != task:
+        raise ValueError(f"{where} is of task {header.get('task')!r}; this run's is {task!r}")
+    known = _known_orders(labels, where)
+    names = list(dict.fromkeys(name for pair in known for name in pair))
+    lengths = sorted({len(labels.segments[name]["features"]) for name in names})
+    if lengths != [segment_length]:
+        steps = " and ".join(map(str, lengths))
+        raise ValueError(
+            f"{where} holds segments of {steps} steps; this run asks about {segment_length}: "
+            "its gold questions would stand out"
+        )
+    bare = [name for name in names if labels.segments[name].get("states") is None]
+    if bare:
+        raise ValueError(
+            f"{where}: segment {bare[0]!r} keeps no physics states, so its clip cannot be "
+            "shown; use a file the labelling page wrote"
+        )
+    row = {name: k for k, name in enumerate(names)}
+    pairs = tuple((row[a], row[b], first) for (a, b), first in known.items())
+    return GoldPairs(str(path), labels.session_segments(names), pairs)
+
+
+def _known_orders(labels: LabelFile, where: str) -> dict[tuple[str, str], bool]:
+    """Each strictly answered pair and whether its first segment is preferred."""
+    known: dict[tuple[str, str], bool] = {}
+    for answer in labels.answers:
+        if answer["answer"] not in ("first", "second"):
+            continue
+        first_better = answer["answer"] == "first"
+        pair, order = (answer["first"], answer["second"]), first_better
+        if pair[0] > pair[1]:
+            pair, order = (pair[1], pair[0]), not first_better
+        if known.setdefault(pair, order) != order:
+            raise ValueError(
+                f"{where}: the pair {pair[0]} / {pair[1]} is answered both ways; "
+                "a gold pair has one known order"
+            )
+    if not known:
+        raise ValueError(f"{where} holds no 'first' or 'second' answer to use as a gold pair")
+    return known
+
+
+def store_gold(db: LabelDB, gold: GoldPairs) -> tuple[tuple[int, int, bool], ...]:
+    """Keep the gold segments and pairs in the database (the same again on a restart);
+    returns the pairs as segment ids. ValueError, with nothing stored, when the database
+    holds other gold."""
+    stored = db.get_meta(GOLD_META)
+    other = (
+        f"this labelling directory was started with other gold pairs than {gold.source}'s: "
+        "give the same --gold, or another --out"
+    )
+    if stored is None:
+        db.store_segments(GOLD_RUN, 0, gold.segments)
+    elif not np.array_equal(db.pool(GOLD_RUN, 0).features, gold.segments.features):
+        raise ValueError(other)
+    ids = db.segment_ids(GOLD_RUN, 0)
+    pairs = tuple((ids[a], ids[b], first) for a, b, first in gold.pairs)
+    given = json.dumps([list(pair) for pair in pairs])
+    if stored is not None and stored != given:
+        raise ValueError(other)
+    db.set_meta(GOLD_META, given)
+    return pairs
