@@ -63,9 +63,9 @@ def test_the_estimates_order_the_members_and_sit_near_the_truth():
 
 def test_flags_catch_a_member_wrong_three_times_in_ten_and_spare_good_ones():
     """The flag's error rates with about 40 answers each checked by someone else (60
-    questions, each asked of two people), over 60 crowds: measured 0.80 of the 0.7 member
-    flagged, 0.10 of the 0.9 member, 0.05 of the 0.95 member; an always-wrong member every
-    time. (Asked of three, the adaptive overlap's way, 0.91, 0.00 and 0.00 at 100 questions:
+    questions, each asked of two people), over 60 crowds: measured at the flag's 0.84
+    0.83 of the 0.7 member flagged, 0.17 of the 0.9 member, 0.07 of the 0.95 member (at
+    0.82: 0.80, 0.10, 0.05); an always-wrong member every time. (Asked of three, the adaptive overlap's way, 0.91, 0.00 and 0.00 at 100 questions:
     results/crowd/README.md.)"""
     flagged: dict[float, list[bool]] = {0.95: [], 0.9: [], 0.7: [], 0.0: []}
     for seed in range(60):
@@ -76,7 +76,7 @@ def test_flags_catch_a_member_wrong_three_times_in_ten_and_spare_good_ones():
             flagged[p].append(found[f"m{j}"].flagged)
     assert np.mean(flagged[0.0]) == 1.0
     assert np.mean(flagged[0.7]) >= 0.65
-    assert np.mean(flagged[0.9]) <= 0.2 and np.mean(flagged[0.95]) <= 0.15
+    assert np.mean(flagged[0.9]) <= 0.25 and np.mean(flagged[0.95]) <= 0.15
 
 
 def test_a_flag_needs_answers_checked_by_others():

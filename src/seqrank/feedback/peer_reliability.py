@@ -41,7 +41,7 @@ from seqrank.feedback.reliability import (
 GOLD = "(gold)"  # the operator's known order as an opinion (no annotator's name has brackets)
 GOLD_RELIABILITY = 1.0 - 1e-3  # (as certain as the posterior's clipping allows)
 PRIOR_ANSWERS = 2.0  # answers' worth of the crowd's mean in every estimate
-FLAG_BELOW = 0.82  # a person estimated below this is flagged ...
+FLAG_BELOW = 0.84  # a person estimated below this is flagged ...
 FLAG_AFTER = 20  # ... once the estimate rests on this many answers checked by others
 RESAMPLES = 200  # bootstrap draws of the pairs for the interval
 TOLERANCE = 1e-6  # EM stops once no reliability moves more than this
