@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from seqrank.feedback.peer_reliability import FLAG_AFTER
+from seqrank.feedback.peer_reliability import FLAG_AFTER, FLAG_BELOW
 from seqrank.rewardbench.intervals import bounded_interval
 
 ANSWER_SECONDS = 3.0  # a crowd member's default answer time (`time=` of crowd:...)
@@ -185,7 +185,7 @@ def flag_table(rows: list[dict[str, Any]]) -> list[str]:
                 cells[(row["crowd"], row["scheme"], row["questions"], name)].append(member)
     lines = [
         "| crowd | scheme | questions | member | true accuracy | estimate [95% CI over seeds] "
-        "| answers checked by others | flagged | interval covers the truth "
+        f"| answers checked by others | flagged (below {FLAG_BELOW}) | interval covers the truth "
         "| flagged, model a voter |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -201,13 +201,19 @@ def flag_table(rows: list[dict[str, Any]]) -> list[str]:
             f"| {crowd} | {scheme} | {questions} | {name} | {np.mean(truths):.3f} "
             f"| {_ci([m['estimate'] for m in members])} "
             f"| {np.mean([m['answers'] for m in members]):.0f} "
-            f"| {sum(bool(m['flagged']) for m in members)}/{len(members)} "
+            f"| {sum(_flagged(m) for m in members)}/{len(members)} "
             f"| {sum(covered)}/{len(covered)} | {sum(old)}/{len(old)} |"
         )
     return lines
 
 
 THRESHOLDS = (0.78, 0.80, 0.82, 0.84, 0.86)
+
+
+def _flagged(member: dict[str, Any]) -> bool:
+    """Whether the member's recorded estimate is flagged at today's threshold (rows made
+    before the threshold moved from 0.82 to 0.84 recorded their flag at 0.82)."""
+    return member["answers"] >= FLAG_AFTER and member["estimate"] < FLAG_BELOW
 
 
 def threshold_table(rows: list[dict[str, Any]]) -> list[str]:
