@@ -30,10 +30,11 @@ from seqrank.episodes import Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.crowd import CrowdSource
+from seqrank.feedback.crowd_record import EvidenceRow, session_evidence
 from seqrank.feedback.overlap import EVIDENCE_UNTIL
 from seqrank.feedback.peer_reliability import estimate_from_peers
 from seqrank.feedback.reliability import evidence_rows
-from seqrank.feedback.schemes import SessionRecord, get_scheme, uniform_choice
+from seqrank.feedback.schemes import get_scheme, uniform_choice
 from seqrank.feedback.session import SessionRequest
 from seqrank.feedback.sources import make_source
 from seqrank.feedback.teachers import CROWD_PREFIX, ScriptedTeacher, scripted_config
@@ -43,7 +44,6 @@ SEGMENT_LENGTH = 50
 AUGMENTS = ("full", "checked")
 # an answer as reliability evidence: (first, second) made unique per run, answer,
 # annotator, the model's P(first) (none: there is no model here)
-EvidenceRow = tuple[int, int, str, str, None]
 
 
 @dataclass(frozen=True)
@@ -178,26 +178,14 @@ def run_crowd_sessions(
         path_unchecked = None if recheck is None else recheck.path_unchecked
         stats.append(augment(record.answers, returns.tolist(), path_unchecked).stats)
         offset = session * len(rewards)
-        given, implied = _crowd_rows(record, offset)
+        assert record.crowd is not None
+        found = session_evidence(record.crowd, record.answers, offset.__add__)
+        given, implied = found.given, found.implied
         evidence += given + implied
         answered += given
         truth += [returns[f - offset] > returns[s - offset] for f, s, _, _, _ in given]
         recheck = recheck and recheck.after(record.answers)
     return stats, _member_rows(crowd, evidence, answered, truth)
-
-
-def _crowd_rows(record: SessionRecord, offset: int) -> tuple[list[EvidenceRow], list[EvidenceRow]]:
-    """The session's evidence, segment ids made unique per run: the answers given (second
-    opinions too), and the orders that closure checks found implied by an owner's chain,
-    which count as the owner's answers (as `LabelStore` counts them in training)."""
-    assert record.crowd is not None
-    crowd = record.crowd
-    asked = [*zip(record.answers, crowd.answered_by, strict=True)]
-    asked += [(o.answered, o.annotator) for o in crowd.second_opinions]
-    given = [(a.first + offset, a.second + offset, a.answer.value, who, None) for a, who in asked]
-    checks = [(o.answered, *o.implied) for o in crowd.second_opinions if o.implied is not None]
-    implied = [(a.first + offset, a.second + offset, s.value, who, None) for a, who, s in checks]
-    return given, implied
 
 
 def _member_rows(

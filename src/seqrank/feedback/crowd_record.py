@@ -4,9 +4,15 @@ opinion of each asked pair, and how long the session took its people."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
+from seqrank.feedback.peer_reliability import GOLD
 from seqrank.types import Answer, AnsweredQuestion
+
+# an answer as reliability evidence: (first, second, answer, annotator, the model's
+# P(first) before the session or None)
+EvidenceRow = tuple[int, int, str, str, float | None]
 
 
 @dataclass(frozen=True)
@@ -51,3 +57,41 @@ class CrowdRecord:
         """Everyone who answered in the session, in order of first answer."""
         seen = [*self.answered_by, *(s.annotator for s in self.second_opinions)]
         return list(dict.fromkeys(seen))
+
+
+@dataclass
+class SessionEvidence:
+    """A crowd session's answers as reliability evidence (`CrowdRecord.evidence`)."""
+
+    given: list[EvidenceRow] = field(default_factory=list)  # chain answers, second opinions
+    implied: list[EvidenceRow] = field(default_factory=list)  # closure checks' orders
+    gold: list[EvidenceRow] = field(default_factory=list)  # gold answers, and GOLD's
+
+    def rows(self) -> list[EvidenceRow]:
+        return [*self.given, *self.implied, *self.gold]
+
+
+def session_evidence(
+    crowd: CrowdRecord, answers: Sequence[AnsweredQuestion], place: Callable[[int], int]
+) -> SessionEvidence:
+    """Every answer of the session (`answers`, the chains') as evidence, segments named by
+    `place` (a pool id to the caller's id): the answers given, each with the model's
+    P(first); the order a closure check found implied by a chain, as its owner's answer
+    (the person whose answers imply it is answerable for it); a gold answer beside the
+    known order, GOLD's, under ids below every place's (a gold pair is in no pool)."""
+    evidence = SessionEvidence()
+    asked = [*answers, *(o.answered for o in crowd.second_opinions)]
+    everyone = [*crowd.answered_by, *(o.annotator for o in crowd.second_opinions)]
+    models = crowd.model_first or (None,) * len(asked)
+    for a, who, model in zip(asked, everyone, models, strict=True):
+        evidence.given.append((place(a.first), place(a.second), a.answer.value, who, model))
+    for opinion, model in zip(crowd.second_opinions, models[len(answers) :], strict=True):
+        if opinion.implied is not None:
+            owner, implied = opinion.implied
+            pair = place(opinion.answered.first), place(opinion.answered.second)
+            evidence.implied.append((*pair, implied.value, owner, model))
+    for gold in crowd.gold:
+        first, second = -gold.pair[0] - 1, -gold.pair[1] - 1
+        evidence.gold.append((first, second, gold.said.value, gold.annotator, None))
+        evidence.gold.append((first, second, gold.known.value, GOLD, None))
+    return evidence

@@ -10,8 +10,8 @@ import torch
 from seqrank.episodes import Segments
 from seqrank.feedback.checking import contradicts_itself
 from seqrank.feedback.closure import Augmentation
-from seqrank.feedback.crowd_record import CrowdRecord
-from seqrank.feedback.peer_reliability import GOLD, estimate_from_peers
+from seqrank.feedback.crowd_record import CrowdRecord, EvidenceRow, session_evidence
+from seqrank.feedback.peer_reliability import estimate_from_peers
 from seqrank.feedback.reliability import (
     MODEL,
     Reliability,
@@ -24,7 +24,7 @@ from seqrank.types import Answer, LabelledPair
 
 # a crowd's answer as stored: (first, second) as store ids, answer, annotator, the model's
 # P(first) before the session (None before its first fit)
-CrowdAnswer = tuple[int, int, str, str, float | None]
+CrowdAnswer = EvidenceRow
 
 
 class LabelStore:
@@ -111,21 +111,8 @@ class LabelStore:
             if asked.answer.label is not None:
                 pair = LabelledPair(asked.first, asked.second, asked.answer.label, False)
                 self._add_pair(pair, offset, session, opinion.annotator)
-        everyone = [*crowd.answered_by, *(o.annotator for o in crowd.second_opinions)]
-        asked_all = [*answers, *(o.answered for o in crowd.second_opinions)]
-        models = crowd.model_first or (None,) * len(asked_all)
-        for asked, annotator, model in zip(asked_all, everyone, models, strict=True):
-            first, second = offset[asked.first], offset[asked.second]
-            self.crowd_answers.append((first, second, asked.answer.value, annotator, model))
-        for gold in crowd.gold:  # (ids below every store id: a gold pair is no stored pair)
-            first, second = -gold.pair[0] - 1, -gold.pair[1] - 1
-            self.crowd_answers.append((first, second, gold.said.value, gold.annotator, None))
-            self.crowd_answers.append((first, second, gold.known.value, GOLD, None))
-        for opinion, model in zip(crowd.second_opinions, models[len(answers) :], strict=True):
-            if opinion.implied is not None:  # a closure check: the chain's owner's answer
-                owner, implied = opinion.implied
-                first, second = offset[opinion.answered.first], offset[opinion.answered.second]
-                self.crowd_answers.append((first, second, implied.value, owner, model))
+        evidence = session_evidence(crowd, answers, offset.__getitem__)
+        self.crowd_answers += evidence.rows()
 
     def reliability(self) -> dict[str, Reliability]:
         """A crowd's annotators' reliability from every answer so far (empty for one
