@@ -22,13 +22,13 @@ import torch
 
 from seqrank.agents.iql import (
     IQL,
-    IQLSettings,
     TwinQ,
     advantage_weights,
     cosine_rate,
     expectile_loss,
     q_target,
 )
+from seqrank.agents.iql_settings import IQLSettings
 from seqrank.agents.networks import mlp
 from seqrank.buffer import Batch
 

@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
+from seqrank.agents.iql_settings import IQLSettings
 from seqrank.agents.networks import mlp
 from seqrank.agents.update_steps import descend, soft_update
 from seqrank.buffer import Batch
@@ -42,23 +42,6 @@ def adam(params: Iterator[nn.Parameter], lr: float) -> torch.optim.Adam:
     """Adam with the fused kernel (torch >= 2.4 has it on the CPU and CUDA): one call per
     step for every parameter, where the default steps them one by one in Python on a CPU."""
     return torch.optim.Adam(params, lr=lr, fused=True)
-
-
-@dataclass(frozen=True)
-class IQLSettings:
-    """The published MuJoCo hyperparameters by default (`configs/mujoco_config.py`)."""
-
-    hidden: int = 256
-    layers: int = 2
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    value_lr: float = 3e-4
-    discount: float = 0.99
-    expectile: float = 0.7  # tau: V tracks this expectile of Q over the dataset's actions
-    temperature: float = 3.0  # beta: 0 is behaviour cloning, larger trusts Q more
-    target_rate: float = 0.005  # the target critic's soft update
-    max_weight: float = 100.0  # the advantage weight's clip
-    decay_steps: int = 1_000_000  # the actor's cosine schedule reaches 0 here; 0: constant
 
 
 def expectile_loss(diff: torch.Tensor, expectile: float) -> torch.Tensor:

@@ -14,12 +14,12 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 from enum import StrEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from seqrank.agents.iql_settings import IQLSettings
 from seqrank.errors import SettingError, setting
 
-if TYPE_CHECKING:
-    from seqrank.agents.iql import IQLSettings
+_IQL = IQLSettings()  # IQL's published hyperparameters, the learner's defaults
 
 
 class OfflineReward(StrEnum):
@@ -51,15 +51,16 @@ class OfflineConfig:
     eval_episodes: int = 10
     seed: int = 0
     batch: int = 256
-    hidden: int = 256
-    layers: int = 2
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    value_lr: float = 3e-4
-    discount: float = 0.99
-    expectile: float = 0.7
-    temperature: float = 3.0
-    target_rate: float = 0.005
+    # the learner's, IQL's published values (`agents.iql_settings`)
+    hidden: int = _IQL.hidden
+    layers: int = _IQL.layers
+    actor_lr: float = _IQL.actor_lr
+    critic_lr: float = _IQL.critic_lr
+    value_lr: float = _IQL.value_lr
+    discount: float = _IQL.discount
+    expectile: float = _IQL.expectile
+    temperature: float = _IQL.temperature
+    target_rate: float = _IQL.target_rate
     reward_scale: str = "auto"  # RewardScale
     normalize_observations: bool = True  # by the dataset's mean and std (LiRE's IQL)
     device: str = "auto"
@@ -81,20 +82,10 @@ class OfflineConfig:
         return cls(**values)
 
     def iql(self) -> IQLSettings:
-        from seqrank.agents.iql import IQLSettings  # torch: not for `seqrank --help`
-
-        return IQLSettings(
-            hidden=self.hidden,
-            layers=self.layers,
-            actor_lr=self.actor_lr,
-            critic_lr=self.critic_lr,
-            value_lr=self.value_lr,
-            discount=self.discount,
-            expectile=self.expectile,
-            temperature=self.temperature,
-            target_rate=self.target_rate,
-            decay_steps=self.steps,  # the actor's rate reaches 0 at the run's last update
-        )
+        """The learner's settings: each of IQL's this config names, and the actor's rate
+        reaching 0 at the run's last update."""
+        shared = {f.name for f in fields(IQLSettings)} & {f.name for f in fields(self)}
+        return IQLSettings(**{name: getattr(self, name) for name in shared}, decay_steps=self.steps)
 
 
 # the least value of each whole-number setting
