@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 from threading import Event
 
+import numpy as np
 import pytest
 
 from seqrank.feedback.labels import LabelStore
@@ -18,13 +19,13 @@ from seqrank.labelling.crowd_keys import GOLD_CHECKS, GOLD_RUN
 from seqrank.labelling.crowd_report import operator_view
 from seqrank.labelling.crowd_team import open_team
 from seqrank.labelling.db import LabelDB
-from seqrank.labelling.gold import read_gold
+from seqrank.labelling.gold import GOLD_META, read_gold
 from seqrank.labelling.human import Hub, PageSettings
 from support.crowd import answering, team_request
 from support.pages import TASK
 
 TEAM = ["alice", "bob", "carol"]
-PAIRS = 6  # gold pairs: segment 2k against 2k + 1, the first preferred when k is even
+PAIRS = 6  # gold pairs: segment 2k against 2k + 1, 2k preferred when k is even
 
 
 def gold_file(path: Path, task: str = TASK, length: int = 3, states: bool = True) -> Path:
@@ -37,10 +38,14 @@ def gold_file(path: Path, task: str = TASK, length: int = 3, states: bool = True
         segment["rewards"] = [0.1 * k] * length
         segment["states"] = [[float(k)] * 4] * length if states else None
         lines.append({**segment, "context": None})
-    for k in range(PAIRS):
+    for k in range(PAIRS):  # the higher-numbered segment preferred when k is odd
         answer = {"type": "answer", "run": "offline", "scheme": "pairwise", "session": 0}
-        answer.update(index=k, first=f"offline/0/{2 * k}", second=f"offline/0/{2 * k + 1}")
-        lines.append({**answer, "answer": "first" if k % 2 == 0 else "second"})
+        a, b = f"offline/0/{2 * k}", f"offline/0/{2 * k + 1}"
+        listed = (a, b) if k % 3 else (b, a)  # some pairs asked the other way round
+        said = "first" if (listed[0] == a) == (k % 2 == 0) else "second"
+        lines.append(
+            {**answer, "index": k, "first": listed[0], "second": listed[1], "answer": said}
+        )
     path.write_text("".join(json.dumps(line) + "\n" for line in lines))
     return path
 
@@ -143,6 +148,16 @@ def test_a_member_is_shown_each_gold_pair_once_before_any_again(team_with_gold):
         assert len(set(pairs[:PAIRS])) == len(pairs[:PAIRS]), name
 
 
+def test_the_known_order_is_the_files_whichever_way_round_a_pair_was_asked(tmp_path):
+    gold = read_gold(gold_file(tmp_path / "gold.jsonl"), TASK, 3)
+    assert len(gold.pairs) == PAIRS
+    for a, b, first in gold.pairs:
+        preferred = gold.segments.features[a if first else b][0][0]  # its number in the file
+        other = gold.segments.features[b if first else a][0][0]
+        k = int(min(preferred, other)) // 2
+        assert preferred == (2 * k if k % 2 == 0 else 2 * k + 1), (a, b, first)
+
+
 @pytest.mark.parametrize(
     "change, message",
     [
@@ -176,14 +191,32 @@ def test_a_gold_file_without_a_known_order_is_refused(tmp_path):
         read_gold(tmp_path / "missing.jsonl", TASK, 3)
 
 
-def test_a_directory_started_with_other_gold_refuses_and_keeps_its_own(tmp_path):
+@pytest.mark.parametrize("differ", ["answers", "segments"])
+def test_a_directory_started_with_other_gold_refuses_and_keeps_its_own(tmp_path, differ):
     hub = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings(0.0, "tester", None))
     open_team(hub, TEAM, 0.0, 60.0, 0, read_gold(gold_file(tmp_path / "a.jsonl"), TASK, 3))
+    kept, pool = hub.db.get_meta(GOLD_META), hub.db.pool(GOLD_RUN, 0).features
     hub.db.close()
     other = gold_file(tmp_path / "b.jsonl")
-    other.write_text(other.read_text().replace('"answer": "first"', '"answer": "second"'))
+    text = other.read_text()
+    if differ == "answers":
+        other.write_text(text.replace('"answer": "first"', '"answer": "second"'))
+    else:
+        other.write_text(text.replace("[[0.0, 0.0, 1.0]", "[[0.5, 0.0, 1.0]"))
     again = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings(0.0, "tester", None))
-    with pytest.raises(ValueError, match="started with other gold pairs"):
+    with pytest.raises(ValueError, match=r"started with the gold pairs of .*a\.jsonl, not"):
         open_team(again, TEAM, 0.0, 60.0, 0, read_gold(other, TASK, 3))
-    assert len(again.db.pool(GOLD_RUN, 0).features) == 2 * PAIRS
+    assert again.db.get_meta(GOLD_META) == kept
+    assert np.array_equal(again.db.pool(GOLD_RUN, 0).features, pool)
+    again.db.close()
+
+
+def test_a_rerun_without_the_gold_file_keeps_asking_the_directorys_gold(tmp_path):
+    hub = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings(0.0, "tester", None))
+    open_team(hub, TEAM, 0.0, 60.0, 0, read_gold(gold_file(tmp_path / "a.jsonl"), TASK, 3))
+    first = hub.crowd.gold
+    hub.db.close()
+    again = Hub(LabelDB.in_dir(tmp_path / "team"), PageSettings(0.0, "tester", None))
+    open_team(again, TEAM, 0.0, 60.0, 0, None)
+    assert again.crowd.gold == first and len(first) == PAIRS
     again.db.close()

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from threading import Event
+from threading import Event, Thread
 
 import numpy as np
 
@@ -138,3 +138,53 @@ def test_an_opinion_nobody_takes_is_withdrawn_once_the_chains_are_done(tmp_path)
     rows = hub.db.rows(f"SELECT withdrawn_at FROM crowd_questions WHERE chain = {SECOND_OPINIONS}")
     assert len(rows) == 4 and all(row["withdrawn_at"] is not None for row in rows)
     hub.db.close()
+
+
+def test_an_opinion_taken_before_the_chains_end_plus_the_wait_is_waited_for(tmp_path):
+    """Two opinions are open when the chains end: xav takes the first 1 s later and answers
+    it 4.5 s later, ann takes the second 2 s later and answers it 5.2 s later (each within
+    the 4 s a taken question is given). The session waits for both: an opinion someone
+    holds is never withdrawn because another one was waited for first."""
+    hub = bare_team(tmp_path, ["ann", "xav"], 4.0, overlap=0.0, overlap_until=1000)
+    tables, result = hub.crowd.tables, {}
+
+    def ask() -> None:
+        result["record"] = hub.source("offline", 3).ask_session(team_request("pairwise", 2, 2))[1]
+
+    session = Thread(target=ask)
+    session.start()
+    for name in ("ann", "xav"):  # each answers their chain's question at once
+        question = _claimed(tables, name)
+        tables.record_answer(question, _choice(question), 5.0, name)
+    ended = time.monotonic()
+
+    def late(name: str, take: float, answer: float) -> None:
+        time.sleep(max(0.0, ended + take - time.monotonic()))
+        question = tables.claim(name)
+        assert question is not None and key_of(question.index) != ChainStep(0, 0)
+        time.sleep(max(0.0, ended + answer - time.monotonic()))
+        tables.record_answer(question, _choice(question), 5.0, name)
+
+    people = [
+        Thread(target=late, args=("xav", 1.0, 4.5)),
+        Thread(target=late, args=("ann", 2.0, 5.2)),
+    ]
+    for person in people:
+        person.start()
+    session.join(60)
+    for person in people:
+        person.join(10)
+    record = result["record"]
+    assert record.crowd is not None and len(record.crowd.second_opinions) == 2
+    withdrawn = hub.db.rows("SELECT 1 FROM crowd_questions WHERE withdrawn_at IS NOT NULL")
+    assert not withdrawn
+    hub.db.close()
+
+
+def _claimed(tables: CrowdTables, name: str):
+    for _ in range(2000):
+        question = tables.claim(name)
+        if question is not None:
+            return question
+        time.sleep(0.005)
+    raise AssertionError(f"{name} was given no question")

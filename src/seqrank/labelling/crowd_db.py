@@ -60,12 +60,13 @@ HOLDS_PAIR = (
     "WHERE q2.run = q.run AND q2.session = q.session AND q2.first = q.first "
     "AND q2.second = q.second AND c2.annotator = ?"
 )
-# each pair of a run's sessions that two or more people answered (skips left out), with
-# whether `annotator` is one of them
+# each pair of a run's sessions that two or more people answered strictly (the evidence a
+# reliability estimate counts), with whether `annotator` is one of them
 SHARED_PAIRS = (
     "SELECT SUM(a.annotator = ?) > 0 AS theirs FROM answers a "
     "JOIN crowd_questions c ON c.question_id = a.question_id "
-    "JOIN questions q ON q.id = a.question_id WHERE q.run = ? AND a.answer != 'skip' "
+    "JOIN questions q ON q.id = a.question_id WHERE q.run = ? "
+    "AND a.answer IN ('first', 'second') "
     "GROUP BY q.session, q.first, q.second HAVING COUNT(DISTINCT a.annotator) > 1"
 )
 
@@ -192,11 +193,6 @@ class CrowdTables:
         found = self.assignment(question.id)
         assert found is not None
         return found
-
-    def posed(self, run: str, session: int, index: int) -> bool:
-        """Whether the session's question stored under `index` was put to the team."""
-        question = self.db.question_at(run, session, index)
-        return question is not None and self.assignment(question.id) is not None
 
     def shared_answers(self, run: str, annotator: str) -> int:
         """How many of `annotator`'s answers in `run` somebody else answered too (the

@@ -113,7 +113,9 @@ def _gold_known(
 
 def _gold_fields(mine: list[Any], gold: dict[tuple[int, int], str]) -> dict[str, Any]:
     """How many gold questions the annotator answered, and how many of them right."""
-    answered = [r for r in mine if r["chain"] == GOLD_CHECKS]
+    answered = [
+        r for r in mine if r["chain"] == GOLD_CHECKS and r["answer"] in ("first", "second")
+    ]  # (a skip or a time-out is no answer to be right or wrong in)
     right = sum(gold.get((r["first"], r["second"])) == r["answer"] for r in answered)
     return {"gold_answered": len(answered), "gold_right": right}
 

@@ -91,6 +91,7 @@ class CrowdHumanSource:
         stored = open_session(self.hub.db, self.run, self.seed, request)
         session = _CrowdSession(self.hub, self.team, stored)
         upcoming = sorted(stored.segment_ids.values())
+        upcoming += sorted({s for a, b, _ in self.team.gold for s in (a, b)})  # (clips ready)
         self.hub.state.show_session(self.run, request.scheme, upcoming)
         if self.hub.renderer is not None:
             self.hub.renderer.ahead(upcoming)
@@ -219,8 +220,9 @@ class _CrowdSession:
     ) -> None:
         """Pose the other opinions on an answer: two while its author's answers shared
         with somebody else are fewer than `overlap_until`, else one at the share
-        `overlap`. Replayed, it poses what it posed before and nothing more: a shared count
-        never decreases, so a later decision never asks for more."""
+        `overlap`. Replayed with the same settings, it poses nothing it did not pose
+        before: a shared count never decreases, so a later decision never asks for more
+        (and posing a posed question again changes nothing)."""
         team = self.team
         if answer is Answer.SKIP or len(team.annotators) < 2:
             return
@@ -230,11 +232,9 @@ class _CrowdSession:
         if needs_second_opinion(shared, author, team.overlap_until, team.overlap, draw):
             short = shared[author] < team.overlap_until
             wanted = min(CHECKERS if short else 1, len(team.annotators) - 1)
-        for nth in range(CHECKERS):
-            opinion = SecondOpinionOf(key, nth)
-            if nth < wanted or self.tables.posed(self.run, self.session, opinion.index):
-                question = self._store_question(opinion, first, second)
-                self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
+        for nth in range(wanted):
+            question = self._store_question(SecondOpinionOf(key, nth), first, second)
+            self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
 
     def _maybe_gold(self, occasion: StoredQuestion, key: ChainStep, author: str) -> None:
         """Now and then, give the author the next gold pair they have not been shown,
@@ -251,7 +251,10 @@ class _CrowdSession:
             a, b, _ = gold[order[self.tables.gold_given(author) % len(gold)]]
             on_left = stream(self.seed, Stream.QUESTION_SIDE, occasion.id, 1).random() < 0.5
             left, right = (a, b) if on_left else (b, a)
-            question = self.db.ensure_question(GOLD_RUN, 0, occasion.id, a, b, None, left, right)
+            defender = a if self.defender else None  # (shown as a chain's question is)
+            question = self.db.ensure_question(
+                GOLD_RUN, 0, occasion.id, a, b, defender, left, right
+            )
         self.tables.pose(question, GOLD_CHECKS, author, None)
 
     def _continuation(self, chain: ChainRow, asked: _Asked) -> ChainRow | None:
@@ -290,16 +293,20 @@ class _CrowdSession:
         return opinions
 
     def _claimed_by(self, question: StoredQuestion, deadline: float) -> bool:
-        """Whether somebody takes (or answers) the unheld `question` before `deadline`."""
+        """Whether somebody takes (or has taken, or answered) the `question` before
+        `deadline`; Stopped when the server stops first (a replay waits again)."""
         with self.db.changed:
-            while not self.hub.stop.is_set() and time.time() < deadline:
+            while True:
                 found = self.tables.assignment(question.id)
                 if found is None or found.withdrawn:
                     return False
                 if found.annotator is not None or self.db.answer(question.id) is not None:
                     return True
+                if self.hub.stop.is_set():
+                    raise Stopped("the labelling server stopped")
+                if time.time() >= deadline:
+                    return False
                 self.db.changed.wait(0.5)
-        return False
 
     def person_seconds(self) -> dict[str, float]:
         """Each annotator's answering time in the session (their latencies added up, gold

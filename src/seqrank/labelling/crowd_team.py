@@ -12,7 +12,7 @@ from seqrank.labelling.crowd_db import CrowdTables, NotYours
 from seqrank.labelling.crowd_settings import CrowdSettings
 from seqrank.labelling.crowd_source import CrowdHumanSource
 from seqrank.labelling.db import StoredAnswer, StoredQuestion
-from seqrank.labelling.gold import GoldPairs, store_gold
+from seqrank.labelling.gold import GoldPairs, store_gold, stored_gold
 from seqrank.labelling.human import Hub
 
 if TYPE_CHECKING:
@@ -31,9 +31,10 @@ def open_team(
     so that a resumed run's addresses stay the same), the main token the operator's; the
     questions pending when the server stopped wait `reassign_after` again from now.
     `overlap_until`: the adaptive overlap (`CrowdSettings`); `gold`: pairs of known order
-    shown among the members' questions (`seqrank.labelling.gold`)."""
+    shown among the members' questions (`seqrank.labelling.gold`; None: those the
+    directory was started with, if any)."""
     hub.check_mode_open()  # before the tokens are stored
-    gold_pairs = () if gold is None else store_gold(hub.db, gold)
+    gold_pairs = stored_gold(hub.db) if gold is None else store_gold(hub.db, gold)
     tables = CrowdTables(hub.db)
     tables.restart_clocks()  # the time the server was down is nobody's delay
     known = tables.annotators()

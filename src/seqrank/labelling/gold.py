@@ -29,6 +29,7 @@ from seqrank.labelling.db import LabelDB
 
 GOLD_SHARE = 0.1  # a gold question after about one answer in ten, for each member
 GOLD_META = "gold_pairs"  # the stored pairs, as segment ids and the known order
+GOLD_SOURCE = "gold_source"  # the file they were read from
 
 
 @dataclass(frozen=True)
@@ -95,10 +96,11 @@ def store_gold(db: LabelDB, gold: GoldPairs) -> tuple[tuple[int, int, bool], ...
     """Keep the gold segments and pairs in the database (the same again on a restart);
     returns the pairs as segment ids. ValueError, with nothing stored, when the database
     holds other gold."""
-    stored = db.get_meta(GOLD_META)
+    stored, source = db.get_meta(GOLD_META), db.get_meta(GOLD_SOURCE)
     other = (
-        f"this labelling directory was started with other gold pairs than {gold.source}'s: "
-        "give the same --gold, or another --out"
+        f"this labelling directory was started with the gold pairs of {source}, not "
+        f"{gold.source}'s: give that file again (or leave --gold out: the directory keeps "
+        "its gold), or label in another directory"
     )
     if stored is None:
         db.store_segments(GOLD_RUN, 0, gold.segments)
@@ -110,4 +112,13 @@ def store_gold(db: LabelDB, gold: GoldPairs) -> tuple[tuple[int, int, bool], ...
     if stored is not None and stored != given:
         raise ValueError(other)
     db.set_meta(GOLD_META, given)
+    if source is None:
+        db.set_meta(GOLD_SOURCE, gold.source)
     return pairs
+
+
+def stored_gold(db: LabelDB) -> tuple[tuple[int, int, bool], ...]:
+    """The gold pairs a directory was started with (none: empty): a rerun without
+    `--gold` keeps asking them."""
+    stored = db.get_meta(GOLD_META)
+    return () if stored is None else tuple((a, b, bool(f)) for a, b, f in json.loads(stored))

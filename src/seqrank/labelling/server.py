@@ -31,6 +31,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from seqrank.labelling.access import OPERATOR, Access, AccessGuard
 from seqrank.labelling.crowd_db import NotYours
+from seqrank.labelling.crowd_keys import GOLD_RUN
 from seqrank.labelling.db import AnswerConflict, NotAsked, StoredQuestion
 from seqrank.labelling.human import Hub
 from seqrank.labelling.jsonl import export_lines
@@ -180,17 +181,22 @@ def _prefetch(hub: Hub, question: StoredQuestion) -> list[str]:
 
 def _question_state(hub: Hub, question: StoredQuestion) -> dict[str, object]:
     """The `/api/state` fields of a question waiting for its answer."""
-    # the scheme and length of the question's own session, which may not be the hub's run
-    session = hub.db.session_row(question.run, question.session)
+    # the scheme and length of the question's own session, which may not be the hub's run;
+    # a gold question shows as the session of the answer it follows (`labelling.gold`)
+    run, number = question.run, question.session
+    if run == GOLD_RUN:
+        occasion = hub.db.question(question.index)
+        run, number = (occasion.run, occasion.session) if occasion is not None else (run, 0)
+    session = hub.db.session_row(run, number)
     scheme = session["scheme"] if session is not None else hub.state.now().scheme
     index, questions = hub.mode.place(question, session["questions"] if session is not None else 0)
     return {
         "status": "question",
-        "run": question.run,
+        "run": run,
         "scheme": scheme,
         "question": {
             "id": question.id,
-            "session": question.session + 1,
+            "session": number + 1,
             "index": index,
             "questions": questions,
             "left": _side(question, question.left),
