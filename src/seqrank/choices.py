@@ -50,6 +50,9 @@ class CrowdWeighting(StrEnum):
     # as drop, and each question of a member flagged before a session asked again of one
     # who is not (`CrowdSource`, `SessionRequest.distrusted`; issue 49, item 3)
     REASK = "reask"
+    # a flagged annotator's labels trained as the probability that they are right (left out
+    # when their estimate is 1/2 or less); everybody else's as given
+    SOFTEN = "soften"
 
 
 class StopOn(StrEnum):

@@ -55,7 +55,8 @@ MEANINGS = {
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
     "is right), drop (a flagged annotator's labels left out), reask (as drop, and each "
     "question of an annotator flagged before a session asked again of one who is not: "
-    "person-time, not questions) or none (answers as given)",
+    "person-time, not questions), soften (a flagged annotator's labels each the "
+    "probability that it is right, left out at 1/2 or less) or none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "
     "address of their own; ASCII letters, digits, '-', '_' and '.', starting with a letter, "
     "'operator' reserved)",

@@ -32,8 +32,10 @@ class LabelStore:
     annotator is right; "drop": the labels of a flagged annotator (their answers and what
     the closure infers from them) are left out of reward training; "reask": as drop, and
     the crowd asks a member flagged before a session's questions again of someone else
-    (`distrusted`), whose answers train; "none": as answered. Reliability is estimated
-    from the other people's answers (`seqrank.feedback.peer_reliability`)."""
+    (`distrusted`), whose answers train; "soften": a flagged annotator's labels train as
+    the probability that they are right (left out at an estimate of 1/2 or less), the
+    others' as answered; "none": as answered. Reliability is estimated from the other
+    people's answers (`seqrank.feedback.peer_reliability`)."""
 
     def __init__(self, weighting: str = "none") -> None:
         self.segments: list[np.ndarray] = []  # (H, obs+act) each
@@ -137,10 +139,14 @@ class LabelStore:
 
     def kept(self) -> list[bool]:
         """Which pairs reward training fits: all, or (`drop`, `reask`) all but a flagged
-        annotator's."""
-        if self.weighting not in ("drop", "reask") or not any(self.annotator):
+        annotator's, or (`soften`) all but those of a flagged annotator estimated right
+        half the time or less."""
+        if self.weighting not in ("drop", "reask", "soften") or not any(self.annotator):
             return [True] * len(self.labels)
-        flagged = {name for name, r in self.reliability().items() if r.flagged}
+        found = self.reliability()
+        flagged = {name for name, r in found.items() if r.flagged}
+        if self.weighting == "soften":
+            flagged = {name for name in flagged if found[name].estimate <= 0.5}
         kept = [name not in flagged for name in self.annotator]
         return kept if any(kept) else [True] * len(kept)  # (all flagged: none trusted more)
 
@@ -151,10 +157,13 @@ class LabelStore:
 
     def training_labels(self) -> list[float]:
         """The labels reward training fits: as answered, or (a crowd, weighted by
-        reliability) each the probability that it is right."""
-        if self.weighting != "reliability" or not any(self.annotator):
+        reliability) each the probability that it is right: everybody's (`reliability`),
+        or a flagged annotator's only (`soften`)."""
+        if self.weighting not in ("reliability", "soften") or not any(self.annotator):
             return list(self.labels)
         trust = self.reliability()
+        if self.weighting == "soften":
+            trust = {name: r for name, r in trust.items() if r.flagged}
         return [
             soft_label(label, trust[name]) if name in trust else label
             for label, name in zip(self.labels, self.annotator, strict=True)

@@ -44,7 +44,12 @@ def method(row: dict[str, Any]) -> str:
     weighting = row.get("weighting", "reliability")
     if not weighs_labels(row.get("teacher", "")) or weighting == "none":
         return name
-    suffixes = {"reliability": "+weighted", "drop": "+dropped", "reask": "+reasked"}
+    suffixes = {
+        "reliability": "+weighted",
+        "drop": "+dropped",
+        "reask": "+reasked",
+        "soften": "+softened",
+    }
     return name + suffixes[weighting]
 
 
