@@ -65,7 +65,8 @@ def test_flags_catch_a_member_wrong_three_times_in_ten_and_spare_good_ones():
     """The flag's error rates with about 40 answers each checked by someone else (60
     questions, each asked of two people), over 60 crowds: measured at the flag's 0.84
     0.83 of the 0.7 member flagged, 0.17 of the 0.9 member, 0.07 of the 0.95 member (at
-    0.82: 0.80, 0.10, 0.05); an always-wrong member every time. (Asked of three, the adaptive overlap's way, 0.91, 0.00 and 0.00 at 100 questions:
+    0.82: 0.80, 0.10, 0.05); an always-wrong member every time. (Asked of three, the
+    adaptive overlap's way, 0.91, 0.00 and 0.00 at 100 questions at 0.82:
     results/crowd/README.md.)"""
     flagged: dict[float, list[bool]] = {0.95: [], 0.9: [], 0.7: [], 0.0: []}
     for seed in range(60):

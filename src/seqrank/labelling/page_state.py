@@ -75,9 +75,11 @@ class PageState:
         with self._lock:
             return self._view
 
-    def move(self, phase: Phase | str, message: str) -> None:
-        """Go to `phase` with `message` (a survey opens with `open_survey` only)."""
-        phase = Phase(phase)
+    def move(self, phase: Phase, message: str) -> None:
+        """Go to `phase` with `message` (a survey opens with `open_survey` only); a phase
+        is named by `Phase` alone, so a misspelt one is caught where it is written."""
+        if not isinstance(phase, Phase):
+            raise TypeError(f"a page phase is a Phase, not {phase!r}")
         if phase is Phase.SURVEY:
             raise PhaseError("a survey opens with its run: open_survey(run, scheme, message)")
         with self._lock:
