@@ -262,10 +262,6 @@ CASES = [
         [*OFFLINE, "--annotators", "alice,bob", "--overlap-until", "-3"],
         "--overlap-until: -3 is out of range; accepted",
     ),
-    (
-        [*ONLINE, "--annotators", "alice,bob", "--crowd-weighting", "reask"],
-        "--crowd-weighting reask: the labelling page's team does not yet ask a flagged member",
-    ),
     # label: gold pairs (issue 49)
     ([*OFFLINE, "--gold", "{labels}"], "--gold {labels} acts on a team's answers; one person"),
     ([*OFFLINE, "--annotators", "a,b", "--gold", "gold.jsonl"], "gold file gold.jsonl does not"),

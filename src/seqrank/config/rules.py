@@ -13,7 +13,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from seqrank.choices import Backbone, CrowdWeighting, Selection
+from seqrank.choices import Backbone, Selection
 from seqrank.config.train_config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
@@ -68,12 +68,6 @@ def check_crowd(config: TrainConfig) -> None:
                 "online --annotators ...`, or a simulated crowd (crowd:oracle+noisy)"
             )
         check_annotator_names(config.annotators, setting("annotators"))
-        if config.crowd_weighting is CrowdWeighting.REASK:
-            raise SettingError(
-                f"{setting('crowd_weighting')} reask: the labelling page's team does not yet "
-                "ask a flagged member's questions again of someone else: leave it out (drop, "
-                "the default), or use a simulated crowd"
-            )
         if config.closure_checks:  # (the page asks others the asked pair itself)
             raise SettingError(
                 f"{setting('closure_checks')} {config.closure_checks}: the labelling page asks "

@@ -53,6 +53,8 @@ UNANSWERED = (
     "WHERE a.question_id IS NULL AND c.withdrawn_at IS NULL"
 )
 
+# whether the claimant is not among those a question excludes (comma-separated names)
+NOT_EXCLUDED = "instr(',' || c.excluded || ',', ',' || ? || ',') = 0"
 # whether the claimant holds (or held) a question on the same pair of the session: nobody
 # gives two of the opinions on one pair
 HOLDS_PAIR = (
@@ -228,7 +230,7 @@ class CrowdTables:
             ).fetchone()
             chains_too = "" if busy is not None else " OR c.chain >= 0"
             free = conn.execute(
-                f"{UNANSWERED} AND c.annotator IS NULL AND ((c.chain < 0 AND c.excluded != ? "
+                f"{UNANSWERED} AND c.annotator IS NULL AND ((c.chain < 0 AND {NOT_EXCLUDED} "
                 f"AND NOT EXISTS ({HOLDS_PAIR})){chains_too}) ORDER BY c.chain < 0, q.id LIMIT 1",
                 (annotator, annotator),
             ).fetchone()

@@ -56,6 +56,8 @@ from seqrank.labelling.session_replay import StoredSession, open_session
 from seqrank.labelling.streams import Stream, stream
 from seqrank.types import Answer, AnsweredQuestion, Question
 
+REASK_NTH = CHECKERS  # the opinion index of a re-ask, after the overlap's own
+
 if TYPE_CHECKING:
     pass
 
@@ -218,6 +220,23 @@ class _CrowdSession:
     def _maybe_second_opinion(
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
     ) -> None:
+        if author in self.request.distrusted:
+            self._reask(key, first, second, author)
+        else:
+            self._overlap(key, first, second, answer, author)
+
+    def _reask(self, key: ChainStep, first: int, second: int, author: str) -> None:
+        """Under `crowd_weighting` reask, a flagged member's question (a skip too) asked
+        again of anybody not flagged, whose answer trains in place of theirs."""
+        distrusted = self.request.distrusted
+        if all(name in distrusted for name in self.team.annotators):
+            return  # (nobody is trusted more)
+        question = self._store_question(SecondOpinionOf(key, REASK_NTH), first, second)
+        self.tables.pose(question, SECOND_OPINIONS, None, excluded=",".join(sorted(distrusted)))
+
+    def _overlap(
+        self, key: ChainStep, first: int, second: int, answer: Answer, author: str
+    ) -> None:
         """Pose the other opinions on an answer: two while its author's answers shared
         with somebody else are fewer than `overlap_until`, else one at the share
         `overlap`. Replayed with the same settings, it poses nothing it did not pose
@@ -289,7 +308,8 @@ class _CrowdSession:
             assert isinstance(key, SecondOpinionOf)
             first, second = pool_of[question.first], pool_of[question.second]
             q = Question(key.asked.index, first, second, self.defender)
-            opinions.append(SecondOpinion(AnsweredQuestion(q, Answer(answer)), who))
+            reask = key.nth == REASK_NTH
+            opinions.append(SecondOpinion(AnsweredQuestion(q, Answer(answer)), who, reask=reask))
         return opinions
 
     def _claimed_by(self, question: StoredQuestion, deadline: float) -> bool:
