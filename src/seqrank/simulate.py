@@ -31,7 +31,7 @@ from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.crowd import CrowdSource
 from seqrank.feedback.crowd_record import EvidenceRow, session_evidence
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 from seqrank.feedback.peer_reliability import estimate_from_peers
 from seqrank.feedback.reliability import evidence_rows
 from seqrank.feedback.schemes import get_scheme, uniform_choice
@@ -53,7 +53,7 @@ class CrowdSettings:
     than `overlap_until` shared answers asked again, `closure_checks` second opinions on
     inferred pairs (`seqrank.feedback.sources.make_source`)."""
 
-    overlap: float = 0.1
+    overlap: float = OVERLAP
     overlap_until: int = EVIDENCE_UNTIL
     closure_checks: bool = False
 

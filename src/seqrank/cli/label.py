@@ -18,7 +18,7 @@ from seqrank.cli.label_page import (
     server_options,
 )
 from seqrank.cli.label_study import add_study, run_study
-from seqrank.cli.label_team import OVERLAP, add_gold, add_team, gold_for
+from seqrank.cli.label_team import add_gold, add_team, gold_for
 from seqrank.cli.options import (
     Parser,
     add_run_options,
@@ -29,7 +29,7 @@ from seqrank.cli.options import (
 )
 from seqrank.cli.train import prepare_run, say_finished
 from seqrank.errors import UsageError
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 from seqrank.feedback.schemes import SCHEMES
 from seqrank.training.stopping import stop_on_signals
 

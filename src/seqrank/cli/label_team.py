@@ -7,9 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.cli.options import int_between, number_between
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
-
-OVERLAP = 0.1  # `label offline`: a team's share of questions asked twice (as TrainConfig)
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 
 
 def add_team(parser: argparse.ArgumentParser) -> None:

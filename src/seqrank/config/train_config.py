@@ -38,7 +38,7 @@ from seqrank.config.ranges import (
 )
 from seqrank.config.roles import Role, check_declared, declare, role_of
 from seqrank.feedback.checking import Recheck
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 from seqrank.feedback.schemes import SchemeName
 from seqrank.feedback.teachers import TeacherSpec, parse_teacher
 from seqrank.reward.rime import RimeSettings
@@ -175,7 +175,7 @@ class TrainConfig:
     # answers also asked of a second person, and how the labels count in reward training
     # (weighting by reliability lost accuracy; a flagged member's labels dropped did not:
     # results/crowd/)
-    overlap: float = declare(Role.FEEDBACK, 0.1, SHARE)
+    overlap: float = declare(Role.FEEDBACK, OVERLAP, SHARE)
     # every answer of a member with fewer answers than this shared with someone else is
     # asked again of two others (`feedback.overlap`: evidence for the flags early); 0:
     # `overlap` only

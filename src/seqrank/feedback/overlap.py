@@ -27,6 +27,7 @@ from seqrank.types import Answer
 
 CHECKERS = 2  # others asked while the owner's evidence is short: three opinions a pair
 EVIDENCE_UNTIL = 50  # a run's default `until` (results/crowd/README.md, issue 49)
+OVERLAP = 0.1  # a run's default share of answers asked again of one other after that
 
 
 def needs_second_opinion(

@@ -5,14 +5,14 @@ recorded earlier (`replay:FILE`), a simulated crowd (`crowd:oracle+noisy`), or a
 from __future__ import annotations
 
 from seqrank.errors import SettingError, setting
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 from seqrank.feedback.session import FeedbackSource, ScriptedSource
 from seqrank.feedback.teachers import ScriptedTeacher, parse_teacher
 
 
 def make_source(
     teacher: str,
-    overlap: float = 0.1,
+    overlap: float = OVERLAP,
     overlap_until: int = EVIDENCE_UNTIL,
     closure_checks: bool = False,
 ) -> FeedbackSource:

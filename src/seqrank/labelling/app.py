@@ -28,7 +28,7 @@ from seqrank.envs import canonical_task, make_env
 from seqrank.envs.recorder import EpisodeRecorder
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.checking import Recheck, contradicts_itself
-from seqrank.feedback.overlap import EVIDENCE_UNTIL
+from seqrank.feedback.overlap import EVIDENCE_UNTIL, OVERLAP
 from seqrank.feedback.schemes import segments_needed
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.session import SessionRequest
@@ -179,7 +179,7 @@ class OfflineOptions:
     policy_run: Path | None  # a run directory whose saved policy acts; None: random actions
     augment: str = "full"  # checked: answers that would imply many pairs are asked again
     annotators: tuple[str, ...] = ()  # a team sharing the sessions out (empty: one person)
-    overlap: float = 0.1  # a team's share of answers also asked of a second annotator
+    overlap: float = OVERLAP  # a team's share of answers also asked of a second annotator
     dataset: str | None = None  # an offline dataset whose episodes are labelled (no rollout)
     # a team: every answer of a member with fewer answers shared with somebody else is
     # asked again of two others (`seqrank.feedback.overlap`)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from seqrank.feedback.overlap import OVERLAP
 from seqrank.labelling.crowd_db import CrowdTables
 
 
@@ -13,7 +14,7 @@ class CrowdSettings:
     tokens: dict[str, str]  # annotator -> their token, in the order given
     operator_token: str  # the operator page's (`/operator`); annotators' tokens cannot open it
     tables: CrowdTables
-    overlap: float = 0.1  # share of answers also asked of a second annotator
+    overlap: float = OVERLAP  # share of answers also asked of a second annotator
     reassign_after: float = 60.0  # seconds a question waits before it is handed over
     # every answer of an annotator with fewer answers shared with somebody else is asked
     # again of two others (`seqrank.feedback.overlap`); 0: the share `overlap` only
