@@ -188,3 +188,25 @@ def _claimed(tables: CrowdTables, name: str):
             return question
         time.sleep(0.005)
     raise AssertionError(f"{name} was given no question")
+
+
+def test_a_session_is_complete_when_its_own_questions_are_answered_not_its_opinions(tmp_path):
+    """A team's session stopped after 2 of its 3 questions and 3 other opinions is not
+    complete: a rerun asks the third (`run_offline` compares this count with the session's
+    questions)."""
+    db = LabelDB.in_dir(tmp_path)
+    tables = CrowdTables(db)
+    pool = Segments(np.zeros((4, 3, 4), np.float32), np.zeros((4, 3)), [None] * 4, [None] * 4)
+    db.create_session("offline", 0, "pairwise", 3, 0, "left", pool)
+    a, b, c, d = sorted(db.segment_ids("offline", 0).values())
+    keys = [ChainStep(0, 0), ChainStep(1, 0)]
+    keys += [SecondOpinionOf(ChainStep(0, 0)), SecondOpinionOf(ChainStep(0, 0), 1)]
+    keys += [SecondOpinionOf(ChainStep(1, 0))]
+    for n, key in enumerate(keys):
+        first, second = (a, b) if n % 2 == 0 else (c, d)
+        question = db.ensure_question("offline", 0, key.index, first, second, None, first, second)
+        who = ("ann", "bob", "carol")[n % 3]
+        tables.pose(question, 0 if isinstance(key, ChainStep) else SECOND_OPINIONS, who, None)
+        tables.record_answer(question, "left", 5.0, who)
+    assert db.count("offline", 0) == 2
+    db.close()

@@ -18,7 +18,9 @@ person's answer: the person whose answers imply it is answerable for it.
 The interval is a 95% percentile bootstrap over the pairs: a Beta posterior that counts
 the expected right answers as observed covered the true reliability only 80% of the time
 (the truth of a pair two people disagree on is itself uncertain); its coverage is measured
-in tests/feedback/test_peer_reliability.py.
+in tests/feedback/test_peer_reliability.py. It is never narrower than that Beta interval
+(Jeffreys') on the answers it rests on: where everybody agrees, the bootstrap has nothing
+to resample and would say 0.98 [0.977, 0.981] after 32 checks.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import beta as beta_distribution
 
 from seqrank.feedback.reliability import (
     ITERATIONS,
@@ -129,6 +132,9 @@ def _summary(
     name: str, k: int, estimate: float, answers: int, draws: np.ndarray, votes: _Votes
 ) -> Reliability:
     low, high = (0.0, 1.0) if not len(draws) else np.quantile(draws[:, k], [0.025, 0.975])
+    if answers:  # never narrower than the answers it rests on allow (`_counts_interval`)
+        counts_low, counts_high = _counts_interval(estimate, answers)
+        low, high = min(low, counts_low), max(high, counts_high)
     agreeing, overlapping = agreement(k, votes.who, votes.item, votes.said, model=-1)
     return Reliability(
         name,
@@ -141,3 +147,12 @@ def _summary(
         flag_below=FLAG_BELOW,
         flag_after=FLAG_AFTER,
     )
+
+
+def _counts_interval(estimate: float, answers: int) -> tuple[float, float]:
+    """The 95% interval of a share right out of `answers` (Jeffreys' Beta): a bootstrap of
+    answers that all agree collapses to a point, which would read as near-proof on the
+    operator's page after a few dozen checks."""
+    right = estimate * answers
+    counts = beta_distribution(right + 0.5, answers - right + 0.5)
+    return float(counts.ppf(0.025)), float(counts.ppf(0.975))

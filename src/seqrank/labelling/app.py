@@ -35,6 +35,7 @@ from seqrank.feedback.session import SessionRequest
 from seqrank.labelling import CLIP_SIZE
 from seqrank.labelling.access import Access, is_wildcard, page_token
 from seqrank.labelling.clips import ClipRenderer
+from seqrank.labelling.crowd_keys import GOLD_RUN
 from seqrank.labelling.db import LabelDB, from_blob
 from seqrank.labelling.human import Hub, PageSettings, Stopped
 from seqrank.labelling.jsonl import export_file
@@ -160,7 +161,9 @@ def record_task(db: LabelDB, task: str, obs_dim: int, act_dim: int, segment_leng
 def close_hub(hub: Hub, directory: Path, say: Say) -> None:
     hub.stop.set()
     answers = export_file(hub.db, directory / LABELS_FILE)
-    say(f"{answers} answers saved in {hub.db.path} and {directory / LABELS_FILE}")
+    gold = len(hub.db.answered_questions(GOLD_RUN))
+    kept = f" ({gold} answers to gold pairs in the database only)" if gold else ""
+    say(f"{answers} answers saved in {hub.db.path} and {directory / LABELS_FILE}{kept}")
     if hub.renderer is not None:
         hub.renderer.close()
     hub.db.close()

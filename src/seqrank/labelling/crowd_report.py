@@ -130,6 +130,7 @@ def _reliability_fields(found: Reliability | None) -> dict[str, Any]:
         "rests_on": found.answers,
         "flagged": found.flagged,
         "flag_below": found.flag_below,
+        "flag_after": found.flag_after,
     }
 
 

@@ -317,9 +317,12 @@ class LabelDB:
         return [(question_from_row(r), answer_from_row(r, r["id"])) for r in rows]
 
     def count(self, run: str, session: int) -> int:
+        """The session's questions answered: a team's other opinions on them (stored under
+        negative indices) are not among them, so a session is complete when this reaches
+        its number of questions, however many opinions were given."""
         rows = self._rows(
             "SELECT COUNT(*) AS n FROM questions q JOIN answers a ON a.question_id = q.id "
-            "WHERE q.run = ? AND q.session = ?",
+            "WHERE q.run = ? AND q.session = ? AND q.idx >= 0",
             run,
             session,
         )

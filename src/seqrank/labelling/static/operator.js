@@ -27,7 +27,8 @@ function showAnnotators(people) {
     cell(row, p.median_latency_ms === null ? "-" : `${(p.median_latency_ms / 1000).toFixed(1)} s`);
     cell(row, String(p.handed_over));
     cell(row, num(p.kappa, 2));
-    cell(row, p.reliability === null ? "-" : `${num(p.reliability, 2)} [${num(p.low, 2)}, ${num(p.high, 2)}], ${p.rests_on} checked`);
+    const checks = p.flagged || p.rests_on >= p.flag_after ? `${p.rests_on} checked` : `${p.rests_on} checked (a flag needs ${p.flag_after})`;
+    cell(row, p.reliability === null ? "-" : `${num(p.reliability, 2)} [${num(p.low, 2)}, ${num(p.high, 2)}], ${checks}`);
     cell(row, p.gold_answered ? `${p.gold_right} of ${p.gold_answered} right` : "-");
     cell(row, p.address, "address");
     body.appendChild(row);
