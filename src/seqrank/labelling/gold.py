@@ -36,7 +36,7 @@ GOLD_SOURCE = "gold_source"  # the file they were read from
 class GoldPairs:
     """Gold pairs read from `source`: `pairs` are (row, row, first preferred) of `segments`."""
 
-    source: str
+    source: str  # the file, as an absolute path (a refusal names it from anywhere)
     segments: Segments
     pairs: tuple[tuple[int, int, bool], ...]
 
@@ -69,7 +69,7 @@ def read_gold(path: Path, task: str, segment_length: int) -> GoldPairs:
         )
     row = {name: k for k, name in enumerate(names)}
     pairs = tuple((row[a], row[b], first) for (a, b), first in known.items())
-    return GoldPairs(str(path), labels.session_segments(names), pairs)
+    return GoldPairs(str(Path(path).resolve()), labels.session_segments(names), pairs)
 
 
 def _known_orders(labels: LabelFile, where: str) -> dict[tuple[str, str], bool]:
