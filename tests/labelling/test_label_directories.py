@@ -82,3 +82,18 @@ def test_a_study_rerun_with_other_settings_is_refused_before_the_page_starts(tmp
     err = capsys.readouterr().err
     assert "participant p1 began method root with other settings (max_feedback 30 -> 20)" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_rerun_that_changes_a_continuable_setting_is_told_so(tmp_path):
+    from seqrank.labelling.directory import check_offline_settings, record_offline_settings
+
+    began = {"scheme": "root", "questions": 3, "annotators": ["a", "b"], "overlap": 0.1}
+    db = LabelDB.in_dir(tmp_path)
+    record_offline_settings(db, {**began, "overlap_until": 50})
+    db.close()
+    same = check_offline_settings(tmp_path, {**began, "overlap_until": 50})
+    changed = check_offline_settings(
+        tmp_path, {**began, "annotators": ["a", "b", "c"], "overlap_until": 10}
+    )
+    assert same == []
+    assert changed == ["--annotators a,b,c (was a,b)", "--overlap-until 10 (was 50)"]

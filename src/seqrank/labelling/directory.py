@@ -37,10 +37,11 @@ def take_directory(directory: Path, what: str = "labelling directory") -> DirLoc
     return lock
 
 
-def check_offline_settings(directory: Path, settings: dict[str, Any]) -> None:
-    """ValueError naming each setting that differs from those the directory began with."""
+def check_offline_settings(directory: Path, settings: dict[str, Any]) -> list[str]:
+    """ValueError naming each setting that differs from those the directory began with;
+    else the continuable ones a rerun changes, as `--name new (was old)`, to be said."""
     if not (directory / DB_NAME).exists():
-        return
+        return []
     db = LabelDB.in_dir(directory)
     try:
         stored = db.get_meta(SETTINGS_KEY)
@@ -57,6 +58,15 @@ def check_offline_settings(directory: Path, settings: dict[str, Any]) -> None:
             f"labelling directory {directory} was started with {', '.join(differences)}; "
             "rerun with its settings to continue, or choose another --out"
         )
+    return [
+        f"--{name.replace('_', '-')} {_shown(settings.get(name))} (was {_shown(saved[name])})"
+        for name in CONTINUABLE
+        if name in saved and saved[name] != settings.get(name)
+    ]
+
+
+def _shown(value: Any) -> str:
+    return ",".join(value) if isinstance(value, list) else str(value)
 
 
 def record_offline_settings(db: LabelDB, settings: dict[str, Any]) -> None:
