@@ -50,6 +50,8 @@ from typing import Any
 
 import numpy as np
 
+from seqrank.offline.settings import LEARNED_ONLY
+
 GRID_KEYS = {"tasks", "seeds", "questions", "schemes", "true_reward", "score_last",
              "dataset", "offline"}  # fmt: skip
 DATASET_KEYS = {"runs", "run_steps", "run_settings", "sources", "episodes", "seed"}
@@ -216,6 +218,8 @@ def offline_jobs(grid: Grid, layout: Layout) -> Iterator[tuple[str, Path, Path, 
         for task in grid.tasks:
             for arm, reward in grid.arms():
                 settings = {**grid.offline, **reward, "seed": seed, "task": task}
+                if settings.get("reward", "true") == "true":  # (it asks no question)
+                    settings = {k: v for k, v in settings.items() if k not in LEARNED_ONLY}
                 name = f"IQL {task} {arm} seed {seed}"
                 yield name, layout.dataset(task), layout.run(task, arm, seed), settings
 

@@ -313,9 +313,9 @@ def offline_train(
         >>> summary = seqrank.offline_train("door-open-v0", "run", steps=1000)  # doctest: +SKIP
     """
     from seqrank.offline.launch import open_or_start
-    from seqrank.offline.settings import OfflineConfig
+    from seqrank.offline.settings import new_config
 
-    config = OfflineConfig.from_dict({"dataset": str(dataset), "reward": reward, **settings})
+    config = new_config({"dataset": str(dataset), "reward": reward, **settings})
     started = open_or_start(Path(out), config)
     try:
         if started.trainer is None:

@@ -116,6 +116,22 @@ def test_a_learned_reward_labels_the_dataset_fits_and_trains_on_it(dataset, tmp_
     summary = json.loads((out / "summary.json").read_text())
     assert summary["reward"] == "learned" and summary["scheme"] == "root"
 
+    # its labels replayed: the run takes the file's scheme, budget and lengths, and says so
+    replay = {"reward": "learned", "teacher": f"replay:{out / 'labels.jsonl'}"}
+    again = tmp_path / "replayed"
+    code = main(["offline", "train", "--dataset", str(dataset), "--out", str(again), "--quiet",
+                 *flags(replay), *flags(TINY)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    config = json.loads((again / "config.json").read_text())
+    taken = ("scheme", "max_feedback", "segment_length", "session_questions")
+    assert [config[name] for name in taken] == ["root", 20, 10, 10]
+    other = tmp_path / "other"
+    code = main(["offline", "train", "--dataset", str(dataset), "--out", str(other), "--quiet",
+                 *flags({**replay, "scheme": "pairwise"}), *flags(TINY)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "--scheme pairwise conflicts with the replay file's root" in err
+    assert not other.exists()
+
 
 BUDGET = {"reward": "learned", "scheme": "pairwise", "max_feedback": 5000}  # 20 segments there
 BAD = {  # case -> (options, text the one line must hold); "DATA": the test's dataset
@@ -125,6 +141,14 @@ BAD = {  # case -> (options, text the one line must hold); "DATA": the test's da
     "budget": ({"dataset": "DATA", **BUDGET}, "a budget of 5000 pairwise questions needs"),
     "setting": ({"dataset": "DATA", "expectile": 1.5}, "--expectile must be"),
     "no dataset": ({}, "--dataset is needed"),
+    "learned setting, true reward": (
+        {"dataset": "DATA", "scheme": "root"},
+        "--scheme acts on a learned reward; --reward true trains on the dataset's own",
+    ),
+    "a person": (
+        {"dataset": "DATA", "reward": "learned", "teacher": "human"},
+        "answers on the labelling page: label the dataset there",
+    ),
 }
 
 

@@ -150,7 +150,7 @@ def _say(err: Console, text: str) -> None:
 
 def _start(args: argparse.Namespace, err: Console) -> OfflineStarted:
     from seqrank.offline.launch import continue_run, start_new
-    from seqrank.offline.settings import OfflineConfig
+    from seqrank.offline.settings import new_config
 
     if hasattr(args, "resume"):
         extra = [f"--{k.replace('_', '-')}" for k in given(args)] + ["--out"] * hasattr(args, "out")
@@ -166,7 +166,7 @@ def _start(args: argparse.Namespace, err: Console) -> OfflineStarted:
     settings = given(args)
     if "dataset" not in settings:
         raise ValueError("--dataset is needed (or --resume RUN_DIR)")
-    config = OfflineConfig(**settings)
+    config = new_config(settings)
     path = getattr(args, "out", None) or Path("seqrank-out/runs") / _run_name(config)
     started = start_new(path, config, say=lambda text: _say(err, text))
     _say(err, f"run directory: {path}")

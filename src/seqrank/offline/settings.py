@@ -12,8 +12,9 @@ every 5 000; its reward scaling is `reward_scale` "unit" (`offline.rewards`).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from enum import StrEnum
+from pathlib import Path
 from typing import Any
 
 from seqrank.agents.iql_settings import IQLSettings
@@ -86,6 +87,62 @@ class OfflineConfig:
         reaching 0 at the run's last update."""
         shared = {f.name for f in fields(IQLSettings)} & {f.name for f in fields(self)}
         return IQLSettings(**{name: getattr(self, name) for name in shared}, decay_steps=self.steps)
+
+
+# what a learned reward is asked with: a run on the dataset's own reward takes none of them
+LEARNED_ONLY = ("scheme", "teacher", "max_feedback", "segment_length", "session_questions")
+
+
+def new_config(values: dict[str, Any]) -> OfflineConfig:
+    """A new run's settings from those a user gave (options or keywords; the rest take
+    their defaults): learned-reward settings beside the true reward are refused, a
+    `replay:FILE` teacher's scheme, segment length, session size and budget come from its
+    file (given otherwise: refused), and a dataset folder is named by its absolute path (a
+    resumed run finds it from anywhere)."""
+    config = OfflineConfig.from_dict(values)
+    given = set(values)
+    if config.reward == OfflineReward.TRUE.value:
+        extra = [setting(name) for name in LEARNED_ONLY if name in given]
+        if extra:
+            raise SettingError(
+                f"{', '.join(extra)} {'act' if len(extra) > 1 else 'acts'} on a learned reward; "
+                f"{setting('reward')} true trains on the dataset's own: leave "
+                f"{'them' if len(extra) > 1 else 'it'} out, or give {setting('reward')} learned"
+            )
+    if Path(config.dataset).exists():
+        config = replace(config, dataset=str(Path(config.dataset).resolve()))
+    return _replayed(config, given)
+
+
+def _replayed(config: OfflineConfig, given: set[str]) -> OfflineConfig:
+    from seqrank.config.rules import recorded_values, replayed
+
+    if config.teacher.strip().lower() == "human":
+        raise SettingError(
+            f"{setting('teacher')} 'human' answers on the labelling page: label the dataset "
+            "there (seqrank label offline --dataset ...), then train on its labels.jsonl "
+            f"with {setting('teacher')} replay:FILE"
+        )
+    recorded = replayed(config.teacher)
+    if recorded is None:
+        return config
+    taken = recorded_values(recorded, config.max_feedback if "max_feedback" in given else None)
+    taken["session_questions"] = taken.pop("reward_batch")
+    taken.pop("task", None)
+    for name, value in taken.items():
+        if name in given and name != "max_feedback" and getattr(config, name) != value:
+            raise SettingError(
+                f"{setting(name)} {getattr(config, name)} conflicts with the replay file's "
+                f"{value} ({recorded.file}); leave {setting(name)} out to take the file's"
+            )
+    if config.max_feedback > recorded.answers and "max_feedback" in given:
+        raise SettingError(
+            f"{setting('max_feedback')} {config.max_feedback} is more than the "
+            f"{recorded.answers} answers of {recorded.file}"
+        )
+    if "max_feedback" in given:
+        taken.pop("max_feedback")
+    return replace(config, **taken)
 
 
 # the least value of each whole-number setting
