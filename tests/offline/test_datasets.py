@@ -209,3 +209,15 @@ def test_a_datasets_episodes_become_a_reward_bench_pool(tmp_path, capsys):
     np.testing.assert_array_equal(pool.obs.reshape(-1, 5), dataset.observations)
     np.testing.assert_allclose(pool.reward.reshape(-1), dataset.rewards, rtol=1e-6)
     assert pool.meta["dataset_path"] == str(tmp_path / "data")
+
+
+def test_an_offline_run_as_a_source_is_named_for_what_it_is(tmp_path, capsys):
+    """An offline run (IQL on a dataset) plays no episodes of its own to make a dataset of."""
+    run = tmp_path / "iql-run"
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps({"dataset": "somewhere", "task": None}))
+    code = main(["dataset", "make", "--task", CARTPOLE, "--source", f"run:{run}",
+                 "--out", str(tmp_path / "new")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and f"source run:{run} is an offline run" in err, err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "new").exists()

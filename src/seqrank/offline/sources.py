@@ -130,8 +130,16 @@ def scripted_policy(task: str) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def _run_task(source: Source) -> str:
+    import json
+
     from seqrank.training.runs import RunDir
 
+    config = Path(str(source.run)) / "config.json"
+    if config.is_file() and "dataset" in json.loads(config.read_text()):
+        raise ValueError(
+            f"source run:{source.run} is an offline run, which plays no episodes of its own: "
+            "give an online run's folder (seqrank train)"
+        )
     try:
         return str(RunDir.open(source.run).read_config().task)  # type: ignore[arg-type]
     except (FileNotFoundError, ValueError) as problem:
