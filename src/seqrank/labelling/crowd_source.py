@@ -28,7 +28,6 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass, field, replace
 from itertools import count
-from typing import TYPE_CHECKING
 
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
@@ -57,9 +56,6 @@ from seqrank.labelling.streams import Stream, stream
 from seqrank.types import Answer, AnsweredQuestion, Question
 
 REASK_NTH = CHECKERS  # the opinion index of a re-ask, after the overlap's own
-
-if TYPE_CHECKING:
-    pass
 
 
 class _Cut(Exception):
