@@ -221,3 +221,33 @@ def test_an_offline_run_as_a_source_is_named_for_what_it_is(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and f"source run:{run} is an offline run" in err, err
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "new").exists()
+
+
+def test_ctrl_c_while_making_a_dataset_says_so_in_one_line_and_leaves_nothing(
+    tmp_path, capsys, monkeypatch
+):
+    """A SIGINT while the episodes are written: no traceback, one line, 130 as the other
+    commands exit after Ctrl-C, and neither the dataset nor the folders made for it."""
+    import os
+    import signal
+
+    import seqrank.offline.minari_write as minari_write
+
+    write = minari_write._buffers
+
+    def interrupted(episodes):
+        buffers = write(episodes)
+        yield next(buffers)
+        os.kill(os.getpid(), signal.SIGINT)  # a terminal's Ctrl-C, mid-way through writing
+        yield from buffers
+
+    monkeypatch.setattr(minari_write, "_buffers", interrupted)
+    out = tmp_path / "new" / "cartpole"
+    try:
+        code = main(["dataset", "make", "--task", CARTPOLE, "--source", "random",
+                     "--episodes", "2", "--out", str(out)])  # fmt: skip
+    except KeyboardInterrupt:
+        pytest.fail("Ctrl-C came out of `seqrank dataset make` as a traceback")
+    err = capsys.readouterr().err
+    assert code == 130 and err == f"interrupted: nothing written (no dataset {out})\n", err
+    assert list(tmp_path.iterdir()) == []

@@ -72,10 +72,12 @@ def _add_make(actions: Any) -> None:
 
 def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
     """The input is checked before anything is played or written; a failure while
-    writing leaves nothing behind (`save_episodes`)."""
+    writing leaves nothing behind (`save_episodes`). Ctrl-C or SIGTERM stop it at once
+    (there is nothing to save): one line, and 130 or 143 as the other commands exit."""
     from seqrank.offline.make import MakeRequest, check_request, make_dataset
     from seqrank.offline.minari_write import check_new
     from seqrank.offline.sources import parse_source
+    from seqrank.training.stopping import interrupt_on_signals
 
     try:
         sources = [parse_source(text) for text in args.source]
@@ -85,7 +87,13 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
         check_request(request)
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
-    location = make_dataset(request, args.out)
+    with interrupt_on_signals(lambda: None) as stop:
+        try:
+            location = make_dataset(request, args.out)
+        except KeyboardInterrupt:
+            err.print(f"interrupted: nothing written (no dataset {args.out})",
+                      highlight=False, markup=False, soft_wrap=True)  # fmt: skip
+            return stop.exit_code()
     out.print(f"dataset {location.dataset_id} written to {location.folder}", highlight=False)
     _print_info(_describe(args.out), out)
     return 0

@@ -57,9 +57,11 @@ def save_episodes(
     exist, and nothing is left behind when writing fails."""
     from minari import __version__ as minari_version
 
+    from seqrank.dirs import missing_folders, remove_made
+
     location = check_new(name_or_path)
     obs_dim, act_dim = episodes[0].observations.shape[1], episodes[0].actions.shape[1]
-    made = [p for p in (location.folder, *location.folder.parents) if not p.exists()]
+    made = missing_folders(location.folder)
     try:
         location.folder.mkdir(parents=True)
         storage = _new_storage(location, task, obs_dim, act_dim)
@@ -75,9 +77,7 @@ def save_episodes(
         storage.update_episodes(_buffers(episodes))
     except BaseException:
         shutil.rmtree(location.folder, ignore_errors=True)
-        for folder in reversed(made[:-1]):  # the parents this made, innermost first
-            if folder.is_dir() and not any(folder.iterdir()):
-                folder.rmdir()
+        remove_made(made)  # the parents made for it, where still empty
         raise
     return location
 

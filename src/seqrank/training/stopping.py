@@ -83,9 +83,13 @@ def stop_on_signals(
 @contextlib.contextmanager
 def interrupt_on_signals(on_signal: Callable[[], None]) -> Iterator[StopSignal]:
     """Within the block, every SIGINT/SIGTERM calls `on_signal` and raises
-    KeyboardInterrupt; for a command whose work runs in other processes that `on_signal`
-    tells to stop (the sweep), so that a signal sent to the command alone reaches them."""
+    KeyboardInterrupt; for a command with nothing to save (dataset make: `on_signal` does
+    nothing), or whose work runs in other processes that `on_signal` tells to stop (the
+    sweep), so that a signal sent to the command alone reaches them."""
     stop = StopSignal()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop  # signals reach the main thread only
+        return
 
     def handle(signum: int, frame: FrameType | None) -> None:
         if not stop.received:
