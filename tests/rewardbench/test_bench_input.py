@@ -83,6 +83,25 @@ def test_building_a_pool_too_small_is_refused_and_writes_no_file(tmp_path, capsy
     assert len(load_pool(out)) == 3
 
 
+def test_a_pool_file_already_there_is_refused_not_overwritten(tmp_path, capsys):
+    """Also where --out lacks .npz: numpy adds it, and the file it names is the one checked."""
+    run = _short_run(tmp_path, kept=1)
+    for given, written in (("pool.npz", "pool.npz"), ("other", "other.npz")):
+        args = ["reward-bench", "pool", "--from-run", str(run), "--out", str(tmp_path / given)]
+        assert main([*args, "--random-episodes", "2"]) == 0
+        assert f"pool {tmp_path / written}: 3 episodes" in capsys.readouterr().out
+        before = (tmp_path / written).read_bytes()
+        assert main([*args, "--random-episodes", "3"]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1, err
+        assert (
+            f"pool file {tmp_path / written} already exists; choose another --out or remove it"
+            in err
+        )
+        assert (tmp_path / written).read_bytes() == before
+    assert not (tmp_path / "other").exists()
+
+
 def test_episodes_that_end_early_make_a_pool_whose_segments_lie_within_one_episode():
     """Episode k's observation column 0 is 1000 k + its step, so a segment shows which
     episode and steps it was cut from."""

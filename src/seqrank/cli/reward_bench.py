@@ -89,7 +89,9 @@ def _add_pool(actions: Any) -> None:
         type=int_between(0, 10_000),
         help="episodes of random actions added to the pool (5; 0 with --from-dataset)",
     )
-    pool.add_argument("--out", type=Path, required=True, help="the pool file (.npz)")
+    pool.add_argument(
+        "--out", type=Path, required=True, help="the new pool file (.npz); not one already there"
+    )
     pool.set_defaults(handler=run_pool)
 
 
@@ -134,14 +136,13 @@ def _add_score(actions: Any) -> None:
 def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     """Only the checks of the input run under `UsageError`: a fault in training or in
     building the pool is the code's, and surfaces as a traceback."""
-    from seqrank.dirs import check_file
     from seqrank.rewardbench.pool import kept_episodes, pool_from_kept, save_pool
 
     if args.from_dataset is not None:
         return _pool_from_dataset(args, out)
     args.random_episodes = 5 if args.random_episodes is None else args.random_episodes
     try:
-        check_file(args.out, "pool file")
+        path = _new_pool_file(args.out)
         if args.until_step is not None and args.from_run is None:
             raise ValueError("--until-step takes part of a run given with --from-run")
         started = None if args.from_run is not None else _start_pool_run(args)
@@ -154,13 +155,25 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None
     pool = pool_from_kept(kept, args.random_episodes, args.seed)
-    save_pool(pool, args.out)
-    _say_pool(pool, args.out, out)
+    save_pool(pool, path)
+    _say_pool(pool, path, out)
     return 0
 
 
-def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
+def _new_pool_file(out: Path) -> Path:
+    """The file a pool is written to (numpy adds .npz to a name without it); one that is
+    there already is refused (a ValueError) rather than overwritten."""
     from seqrank.dirs import check_file
+
+    path = out if str(out).endswith(".npz") else out.with_name(out.name + ".npz")
+    for given in dict.fromkeys((out, path)):
+        check_file(given, "pool file")
+    if path.exists():
+        raise ValueError(f"pool file {path} already exists; choose another --out or remove it")
+    return path
+
+
+def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
     from seqrank.offline.minari_io import load_dataset
     from seqrank.rewardbench.pool import check_pool_size, pool_from_dataset, save_pool
 
@@ -169,14 +182,14 @@ def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
         if args.from_run is not None or args.until_step is not None:
             raise ValueError("--from-dataset takes a dataset's episodes: leave out --from-run "
                              "and --until-step")  # fmt: skip
-        check_file(args.out, "pool file")
+        path = _new_pool_file(args.out)
         dataset = load_dataset(args.from_dataset, task=args.task)
         check_pool_size(dataset.episode_count + random_count, f"dataset {args.from_dataset}")
     except ValueError as problem:
         raise UsageError(str(problem)) from None
     pool = pool_from_dataset(dataset, random_count, args.seed)
-    save_pool(pool, args.out)
-    _say_pool(pool, args.out, out)
+    save_pool(pool, path)
+    _say_pool(pool, path, out)
     return 0
 
 
