@@ -20,6 +20,7 @@ from seqrank.simulate import synthetic_segments
 from seqrank.training import sessions as sessions_module
 from seqrank.training.sessions import FeedbackSessions, Schedule
 from seqrank.training.state import Counters
+from seqrank.types import Answer
 
 # two oracles and a member who is always wrong, each at their own pace
 WRONG = "crowd:oracle,time=2+oracle,time=3+mistake,eps_mistake=1.0,name=bad,time=5"
@@ -105,19 +106,29 @@ def test_a_reask_costs_person_time_and_is_evidence_never_a_question():
     assert reasks > 0 and len(record.answers) == QUESTIONS
     everyone = [*record.crowd.answered_by, *(o.annotator for o in opinions)]
     assert record.crowd.person_seconds == pytest.approx(sum(pace[name] for name in everyone))
-    # the same sessions under drop, who asks nobody again: the re-asks on top, as evidence
-    dropped, as_drop = run_sessions(WRONG, "drop", sessions=2)
-    assert as_drop[1][1].crowd is not None
-    extra = sum(pace[o.annotator] for o in opinions if o.reask)
-    assert record.crowd.person_seconds == pytest.approx(as_drop[1][1].crowd.person_seconds + extra)
-    assert len(labels.crowd_answers) == len(dropped.crowd_answers) + reasks
+    # every opinion is evidence beside the session's answers, none a question of the budget
+    stored = len(labels.crowd_answers)
+    assert stored == sum(len(r.answers) + len(r.crowd.second_opinions) for _, r in asked if r.crowd)
 
 
-def test_a_question_a_trusted_member_answers_again_anyway_is_not_reasked():
+def test_a_flagged_members_answer_is_reasked_once_in_place_of_the_overlap():
+    """One rule with the page (`overlap.reasked`): while evidence is short every answer has
+    two other opinions, but a flagged member's has one, a re-ask of a trusted member's."""
     _, asked = run_sessions(WRONG, "reask", sessions=2, until=1000)  # two others ask all
     request, record = asked[1]
     assert request.distrusted == {"bad"} and record.crowd is not None
-    assert record.crowd.second_opinions and not any(o.reask for o in record.crowd.second_opinions)
+    opinions: dict[int, list] = {}
+    for opinion in record.crowd.second_opinions:
+        opinions.setdefault(opinion.answered.question.index, []).append(opinion)
+    owners = record.crowd.answered_by
+    for k, (answer, owner) in enumerate(zip(record.answers, owners, strict=True)):
+        if owner == "bad":
+            (only,) = opinions[k]
+            assert only.reask and only.annotator in {"oracle", "oracle-2"}
+            assert (only.answered.first, only.answered.second) == (answer.first, answer.second)
+        elif answer.answer is not Answer.SKIP:
+            assert len(opinions[k]) == 2 and not any(o.reask for o in opinions[k])
+            assert owner not in {o.annotator for o in opinions[k]}
 
 
 def test_nobody_flagged_reask_is_exactly_drop():

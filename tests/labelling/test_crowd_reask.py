@@ -58,3 +58,11 @@ def test_with_two_flagged_only_the_trusted_member_answers_again(tmp_path):
     owners = {"bob", "carol"} & set(record.crowd.answered_by)
     assert owners and reasks and {o.annotator for o in reasks} == {"ann"}
     hub.db.close()
+
+
+def test_a_stored_reask_index_is_never_an_overlap_opinions():
+    """A re-ask is told apart from the overlap's opinions by its stored index alone."""
+    from seqrank.feedback.overlap import CHECKERS
+    from seqrank.labelling.crowd_keys import REASK_NTH
+
+    assert REASK_NTH >= CHECKERS

@@ -10,9 +10,10 @@ The choices this module makes (issue 37; docs/guides/team.md):
 - a crowd of one asks exactly what a single teacher asks (same pool, same draws);
 - under `crowd_weighting` reask, each question of a member flagged before the session
   (`SessionRequest.distrusted`) is asked again of one who is not (the fewest shared
-  answers first, as `overlap.checkers` picks), unless a second opinion of someone trusted
-  has it already: an asked pair of the re-asker's, evidence like any second opinion, and
-  never in a closure (a flagged member's chain is what the closure drew from).
+  answers first, as `overlap.checkers` picks) in place of the overlap's opinions on it
+  (`overlap.reasked`, the page's rule too): an asked pair of the re-asker's, evidence like
+  any second opinion, and never in a closure (a flagged member's chain is what the closure
+  drew from).
 
 `CrowdSource` is the simulated crowd of scripted members (`--teacher crowd:...`), whose
 answer times give the session's length with its people answering side by side.
@@ -29,7 +30,7 @@ import numpy as np
 from seqrank.episodes import Segments
 from seqrank.feedback.closure_checks import chain_inferences, pair_to_check
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
-from seqrank.feedback.overlap import adaptive_picks, checkers
+from seqrank.feedback.overlap import adaptive_picks, checkers, reasked
 from seqrank.feedback.schemes import (
     Ask,
     SessionRecord,
@@ -235,8 +236,10 @@ class CrowdSource:
         ]
         owners = [m.name for m in self.members[: len(chains)]]
         record = merge_chains(request.scheme, records, owners)
-        seconds = self._second_opinions(record, rngs, asker)
-        seconds += self._reasks(record, seconds, request.distrusted, rngs[0], asker)
+        names = [m.name for m in self.members]
+        exempt = frozenset(n for n in names if reasked(n, request.distrusted, names))
+        seconds = self._second_opinions(record, rngs, asker, exempt)
+        seconds += self._reasks(record, exempt, rngs[0], asker)
         times = {m.name: answers[m.name] * m.seconds for m in self.members}
         return request.segments, with_opinions(request, record, seconds, times)
 
@@ -245,13 +248,14 @@ class CrowdSource:
         record: SessionRecord,
         rngs: Sequence[np.random.Generator],
         asker: Callable[[int, np.random.Generator], Ask],
+        exempt: frozenset[str],
     ) -> list[SecondOpinion]:
         assert record.crowd is not None
         names = [m.name for m in self.members]
         rng = rngs[0]
         inferred = chain_inferences(record) if self.closure_checks else {}
         opinions, checks = [], {}  # (one pair to check per answer, whoever checks it)
-        for k, person in self._picks(record, rng):
+        for k, person in self._picks(record, rng, exempt):
             asked, owner = record.answers[k], record.crowd.answered_by[k]
             first, second, implied = asked.first, asked.second, None
             if inferred and k not in checks:
@@ -268,28 +272,18 @@ class CrowdSource:
     def _reasks(
         self,
         record: SessionRecord,
-        opinions: Sequence[SecondOpinion],
-        distrusted: frozenset[str],
+        exempt: frozenset[str],
         rng: np.random.Generator,
         asker: Callable[[int, np.random.Generator], Ask],
     ) -> list[SecondOpinion]:
-        """Each question of a distrusted member asked again of a trusted one, but those a
-        trusted member's second opinion has already; none while nobody, or everybody, is
-        distrusted. Skipped questions too: the flagged member's skip is no answer either."""
+        """Each question of an `exempt` (re-asked) member asked again of one who is not,
+        skipped questions too: the flagged member's skip is no answer either."""
         assert record.crowd is not None
         names = [m.name for m in self.members]
-        trusted = [name for name in names if name not in distrusted]
-        if not distrusted or not trusted:
-            return []
-        covered = {
-            o.answered.question.index
-            for o in opinions
-            if o.implied is None and o.annotator in trusted
-        }
+        trusted = [name for name in names if name not in exempt]
         reasks = []
-        for k, asked in enumerate(record.answers):
-            owner = record.crowd.answered_by[k]
-            if owner not in distrusted or k in covered:
+        for asked, owner in zip(record.answers, record.crowd.answered_by, strict=True):
+            if owner not in exempt:
                 continue
             person = checkers(self.shared, owner, trusted, rng)[0]
             for name in (owner, person):
@@ -298,17 +292,21 @@ class CrowdSource:
             reasks.append(SecondOpinion(replace(asked, answer=answer), person, reask=True))
         return reasks
 
-    def _picks(self, record: SessionRecord, rng: np.random.Generator) -> list[tuple[int, int]]:
-        """(answer index, the second person's member index): adaptive, or as before."""
+    def _picks(
+        self, record: SessionRecord, rng: np.random.Generator, exempt: frozenset[str]
+    ) -> list[tuple[int, int]]:
+        """(answer index, the second person's member index): adaptive, or as before; none
+        of an `exempt` member's answers."""
         assert record.crowd is not None
         names = [m.name for m in self.members]
         if self.overlap_until:
             picks = adaptive_picks(
-                record, names, self.shared, self.overlap_until, self.overlap, rng
+                record, names, self.shared, self.overlap_until, self.overlap, rng, exempt
             )
             return [(k, names.index(second)) for k, second in picks]
         fixed = []
         for k, other in overlap_picks(record, len(names), self.overlap, rng):
             owner = names.index(record.crowd.answered_by[k])
-            fixed.append((k, other if other < owner else other + 1))
+            if names[owner] not in exempt:
+                fixed.append((k, other if other < owner else other + 1))
         return fixed

@@ -12,13 +12,17 @@ in 10, in the pilot of results/crowd/). After that, a share `overlap` of the ans
 asked again of one other person. Overlaps cost person-time, never questions: a second
 opinion is not a question of the budget.
 
+Under `crowd_weighting` reask, an answer of a member flagged before the session gets no
+such opinion: it is asked again, once, of somebody not flagged (`reasked`), whose answer
+trains in its place; the simulated crowd and the page follow this one rule.
+
 `needs_second_opinion` and `checker` are what a page that asks people one answer at a time
 calls; `adaptive_picks` is the simulated crowd's session at once.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -28,6 +32,13 @@ from seqrank.types import Answer
 CHECKERS = 2  # others asked while the owner's evidence is short: three opinions a pair
 EVIDENCE_UNTIL = 50  # a run's default `until` (results/crowd/README.md, issue 49)
 OVERLAP = 0.1  # a run's default share of answers asked again of one other after that
+
+
+def reasked(author: str, distrusted: Collection[str], people: Sequence[str]) -> bool:
+    """Whether `author`'s answer is asked again of somebody not flagged, in place of the
+    overlap's opinions: its author is `distrusted` (flagged before the session, under
+    reask) and somebody among `people` is not."""
+    return author in distrusted and any(name not in distrusted for name in people)
 
 
 def needs_second_opinion(
@@ -60,18 +71,22 @@ def adaptive_picks(
     until: int,
     overlap: float,
     rng: np.random.Generator,
+    exempt: Collection[str] = (),
 ) -> list[tuple[int, str]]:
     """(answer index, who answers it again) for the session's answers, in order (an
-    answer of a member short of evidence twice, by two others); `shared` (each person's
-    answers shared with others so far) counts the picks as it goes."""
+    answer of a member short of evidence twice, by two others), none of an `exempt`
+    member's (their answers are re-asked instead); `shared` (each person's answers
+    shared with others so far) counts the picks as it goes."""
     if len(people) < 2 or record.crowd is None:
         return []
     picks = []
     for k, asked in enumerate(record.answers):
         owner, draw = record.crowd.answered_by[k], rng.random()
         short = shared.get(owner, 0) < until
-        if asked.answer is Answer.SKIP or not needs_second_opinion(
-            shared, owner, until, overlap, draw
+        if (
+            asked.answer is Answer.SKIP
+            or owner in exempt
+            or not needs_second_opinion(shared, owner, until, overlap, draw)
         ):
             continue
         others = checkers(shared, owner, people, rng, CHECKERS if short else 1)

@@ -17,6 +17,7 @@ SECOND_OPINIONS = -1  # the chain a second opinion is stored under in `crowd_que
 GOLD_CHECKS = -2  # ... and a gold question (`seqrank.labelling.gold`)
 GOLD_RUN = "(gold)"  # the run gold segments and questions are stored under (no run's name)
 OPINION_STRIDE = 10**12  # between the nth and the (n+1)th opinions' indices (SQLite: 2**63)
+REASK_NTH = 2  # a re-ask's opinion index: stored, so fixed; above the overlap's (0, 1)
 
 
 @dataclass(frozen=True)

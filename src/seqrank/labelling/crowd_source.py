@@ -32,7 +32,7 @@ from itertools import count
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
 from seqrank.feedback.crowd_record import GoldAnswer, SecondOpinion
-from seqrank.feedback.overlap import CHECKERS, needs_second_opinion
+from seqrank.feedback.overlap import CHECKERS, needs_second_opinion, reasked
 from seqrank.feedback.schemes import Ask, SessionRecord, scheme_has_defender, segments_needed
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.crowd_db import ChainRow
@@ -40,6 +40,7 @@ from seqrank.labelling.crowd_handover import continuation
 from seqrank.labelling.crowd_keys import (
     GOLD_CHECKS,
     GOLD_RUN,
+    REASK_NTH,
     SECOND_OPINIONS,
     ChainStep,
     QuestionKey,
@@ -54,8 +55,6 @@ from seqrank.labelling.page_state import Phase
 from seqrank.labelling.session_replay import StoredSession, open_session
 from seqrank.labelling.streams import Stream, stream
 from seqrank.types import Answer, AnsweredQuestion, Question
-
-REASK_NTH = CHECKERS  # the opinion index of a re-ask, after the overlap's own
 
 
 class _Cut(Exception):
@@ -216,19 +215,17 @@ class _CrowdSession:
     def _maybe_second_opinion(
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
     ) -> None:
-        if author in self.request.distrusted:
-            self._reask(key, first, second, author)
+        if reasked(author, self.request.distrusted, self.team.annotators):
+            self._reask(key, first, second)
         else:
             self._overlap(key, first, second, answer, author)
 
-    def _reask(self, key: ChainStep, first: int, second: int, author: str) -> None:
+    def _reask(self, key: ChainStep, first: int, second: int) -> None:
         """Under `crowd_weighting` reask, a flagged member's question (a skip too) asked
         again of anybody not flagged, whose answer trains in place of theirs."""
-        distrusted = self.request.distrusted
-        if all(name in distrusted for name in self.team.annotators):
-            return  # (nobody is trusted more)
         question = self._store_question(SecondOpinionOf(key, REASK_NTH), first, second)
-        self.tables.pose(question, SECOND_OPINIONS, None, excluded=",".join(sorted(distrusted)))
+        excluded = ",".join(sorted(self.request.distrusted))
+        self.tables.pose(question, SECOND_OPINIONS, None, excluded=excluded)
 
     def _overlap(
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
