@@ -389,7 +389,16 @@ CASES = [
     ([*DATASET_PAGE, "{dataset_foreign}"], "does not name a seqrank task"),
     ([*DATASET_PAGE, "{dataset_foreign}", "--task", "walker_walk"], "observations of size 5 and "),
     ([*DATASET_PAGE, "{dataset_foreign}", "--task", "dmc:cartpole_swingup"], "no physics states"),
-    ([*DATASET_PAGE, "{dataset}", "--questions", "10"], "needs 11 segments of 50 steps; dataset"),
+    (
+        [*DATASET_PAGE, "{dataset}", "--questions", "10", "--segment-length", "30"],
+        "needs 11 segments of 30 steps; dataset",
+    ),
+    (
+        [*DATASET_PAGE, "{dataset}", "--segment-length", "31"],  # 30-step episodes, cut
+        "--segment-length 31 is longer than the shortest episode of dataset made-v0 that ends "
+        "without a terminal state (30 steps; a segment is padded only past a terminal state); "
+        "accepted: 1 to 30",
+    ),
     ([*DATASET_PAGE, "{dataset}", "--from", "{run}"], "--dataset gives the episodes to label: le"),
     ([*DATASET_PAGE, "{dataset}", "--episodes", "3"], "leave out --episodes"),
     ([*DATASET_PAGE, "missing-v0"], "no Minari dataset at 'missing-v0'"),

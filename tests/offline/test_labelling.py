@@ -120,6 +120,33 @@ def test_a_budget_beyond_the_datasets_distinct_segments_is_refused():
         label_dataset(dataset, "root", "oracle", 22, 22, 10)
 
 
+def test_a_segment_is_no_longer_than_an_episode_unless_past_a_terminal_state():
+    """Segments are padded as an absorbing terminal state would show: an episode cut by a
+    time limit bounds the segment length; episodes that end in a terminal state may be
+    shorter (padded), as long as one is as long as a segment."""
+    from dataclasses import replace
+
+    from seqrank.offline.labelling import segment_limit
+
+    dataset = synthetic(episodes=3, steps=20)
+    assert segment_limit(dataset) == (20, True)
+    assert len(label_dataset(dataset, "pairwise", "oracle", 1, 1, 20).asked) == 1
+    with pytest.raises(ValueError, match="segment_length 21 is longer than the shortest "
+                       "episode of dataset synthetic-v0 that ends without a terminal state "
+                       r"\(20 steps; .*\); accepted: 1 to 20$"):  # fmt: skip
+        label_dataset(dataset, "pairwise", "oracle", 1, 1, 21)
+    terminal = np.zeros(len(dataset), bool)
+    terminal[[9, 59]] = True  # episodes of 10, 40 and 10 steps, the first and last terminal
+    uneven = replace(dataset, terminations=terminal, starts=np.array([0, 10, 50]))
+    assert segment_limit(uneven) == (40, True)
+    assert len(label_dataset(uneven, "pairwise", "oracle", 1, 1, 40).asked) == 1
+    uneven = replace(uneven, terminations=terminal | (np.arange(60) == 49))
+    assert segment_limit(uneven) == (40, False)  # every episode terminal: the longest
+    with pytest.raises(ValueError, match=r"every episode of dataset synthetic-v0 \(the "
+                       r"longest has 40 steps\); accepted: 1 to 40"):  # fmt: skip
+        label_dataset(uneven, "pairwise", "oracle", 1, 1, 41)
+
+
 @pytest.mark.parametrize(
     ("scheme", "teacher", "message"),
     [

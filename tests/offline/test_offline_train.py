@@ -139,6 +139,12 @@ BAD = {  # case -> (options, text the one line must hold); "DATA": the test's da
     "another task": ({"dataset": "DATA", "task": "dmc:cartpole_swingup"}, "is of task"),
     "sizes": ({"dataset": "wide"}, "observations of size 3"),
     "budget": ({"dataset": "DATA", **BUDGET}, "a budget of 5000 pairwise questions needs"),
+    "segment longer than an episode": (  # the line task's episodes: 50 steps, cut
+        {"dataset": "DATA", "reward": "learned", "max_feedback": 5, "segment_length": 51},
+        "--segment-length 51 is longer than the shortest episode of dataset line-v0 that ends "
+        "without a terminal state (50 steps; a segment is padded only past a terminal state); "
+        "accepted: 1 to 50",
+    ),
     "setting": ({"dataset": "DATA", "expectile": 1.5}, "--expectile must be"),
     "no dataset": ({}, "--dataset is needed"),
     "learned setting, true reward": (

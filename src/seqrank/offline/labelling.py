@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from seqrank.errors import SettingError, setting
 from seqrank.feedback.labels import LabelStore
 from seqrank.feedback.schemes import SchemeName, segments_needed
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
@@ -92,6 +93,36 @@ def distinct_segments(dataset: OfflineDataset, segment_length: int) -> int:
     return int(np.maximum(lengths - segment_length, 0).sum() + len(lengths))
 
 
+def segment_limit(dataset: OfflineDataset) -> tuple[int, bool]:
+    """The longest segment the dataset's episodes take, and whether an episode that ends
+    without a terminal state sets it. `EpisodeStore.sample_segments` pads an episode
+    shorter than a segment as an absorbing terminal state would show: right only after a
+    terminal state, so the limit is the shortest episode that was cut (a time limit),
+    or where every episode ends in a terminal state, the longest one."""
+    stops = np.append(dataset.starts[1:], len(dataset))
+    lengths, cut = stops - dataset.starts, ~dataset.terminations[stops - 1]
+    return (int(lengths[cut].min()), True) if cut.any() else (int(lengths.max()), False)
+
+
+def check_segment_length(dataset: OfflineDataset, segment_length: int) -> None:
+    """A SettingError naming the longest accepted when segments would be padded where
+    no terminal state is."""
+    limit, cut = segment_limit(dataset)
+    if segment_length <= limit:
+        return
+    name = dataset.meta.get("dataset_id") or dataset.meta.get("path") or ""
+    which = (
+        f"the shortest episode of dataset {name} that ends without a terminal state "
+        f"({limit} steps; a segment is padded only past a terminal state)"
+        if cut
+        else f"every episode of dataset {name} (the longest has {limit} steps)"
+    )
+    raise SettingError(
+        f"{setting('segment_length')} {segment_length} is longer than {which}; "
+        f"accepted: 1 to {limit}"
+    )
+
+
 def check_budget(
     dataset: OfflineDataset,
     scheme: str,
@@ -100,8 +131,10 @@ def check_budget(
     segment_length: int,
     crowd: int = 0,
 ) -> None:
-    """A ValueError when the questions would need more segments than the dataset holds
-    (segments are drawn with replacement, so a session near that many repeats itself)."""
+    """A ValueError when a segment is longer than the dataset's episodes allow
+    (`check_segment_length`), or the questions would need more segments than the dataset
+    holds (segments are drawn with replacement, so a session near that many repeats itself)."""
+    check_segment_length(dataset, segment_length)
     sessions, last = divmod(budget, session_questions)
     chains = max(1, crowd)
     needed = sessions * segments_needed(scheme, session_questions, chains)
