@@ -97,3 +97,59 @@ def test_a_rerun_that_changes_a_continuable_setting_is_told_so(tmp_path):
     )
     assert same == []
     assert changed == ["--annotators a,b,c (was a,b)", "--overlap-until 10 (was 50)"]
+
+
+def _gold_file(path, shift: float):
+    """A label file of cartpole's 3-step segments whose clips could be shown (they keep
+    physics states); `shift` moves every feature, so two shifts give other gold pairs."""
+    import json
+
+    from support.labels import write_labels
+
+    write_labels(path, "pairwise", (2,), 3)
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    for line in lines:
+        if line["type"] == "segment":
+            line["features"] = [[x + shift for x in step] for step in line["features"]]
+            line["states"] = [[0.0] * 5] * 3
+    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    return path
+
+
+def test_a_directory_of_other_labels_is_refused_before_a_progress_line(
+    tmp_path, monkeypatch, capsys
+):
+    """Labels of another task (in a directory that keeps no offline settings: `label
+    online` labelled in it) and a rerun given other gold pairs are refused in one line,
+    before the page's address or a "continuing" line is said, and nothing is written."""
+    import json
+
+    from seqrank.labelling import app
+
+    online = tmp_path / "online"
+    db = LabelDB.in_dir(online)
+    app.record_task(db, "dmc:walker_walk", 24, 6, 50)
+    db.close()
+    before = {p.name: p.stat().st_mtime_ns for p in online.iterdir()}
+    assert main([*COMMAND, "--out", str(online)]) == 2
+    err = capsys.readouterr().err
+    refusal = f"labelling directory {online} holds labels of task dmc:walker_walk, not "
+    assert err.startswith(f"seqrank label: error: {refusal}dmc:cartpole_swingup: choose another")
+    assert len(err.strip().splitlines()) == 1
+    after = {p.name: p.stat().st_mtime_ns for p in online.iterdir() if p.name != ".lock"}
+    assert after == before  # the lock taken to read it aside (`seqrank.dirs`)
+    db = LabelDB.in_dir(online)
+    assert db.get_meta("offline_settings") is None and db.sessions() == []
+    db.close()
+
+    monkeypatch.setattr(app, "run_offline", lambda *args: 0)  # no questions: the gold kept
+    team = [*COMMAND, "--segment-length", "3", "--annotators", "a,b", "--out", str(tmp_path / "t")]
+    assert main([*team, "--gold", str(_gold_file(tmp_path / "g1.jsonl", 0.0))]) == 0
+    capsys.readouterr()
+    other = _gold_file(tmp_path / "g2.jsonl", 1.0)
+    assert main([*team, "--gold", str(other), "--sessions", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "this labelling directory was started with the gold pairs of" in err
+    assert len(err.strip().splitlines()) == 1, err  # not "continuing ... --sessions 2 (was 1)"
+    settings = LabelDB.in_dir(tmp_path / "t").get_meta("offline_settings")
+    assert json.loads(settings or "{}")["sessions"] == 1

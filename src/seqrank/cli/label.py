@@ -235,7 +235,7 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
     settings = _settings_of(options)
     lock = take_directory(directory)
     try:
-        for change in check_offline_settings(directory, settings):
+        for change in check_offline_settings(directory, settings, gold):
             say(f"continuing {directory} with {change}")
         hub = open_hub(directory, options.task, page_options(args))
         if options.annotators:

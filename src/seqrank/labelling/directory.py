@@ -16,6 +16,7 @@ from typing import Any
 
 from seqrank.dirs import DirLock, check_folder, missing_folders, remove_made
 from seqrank.labelling.db import DB_NAME, LabelDB
+from seqrank.labelling.gold import GoldPairs, check_gold
 
 SETTINGS_KEY = "offline_settings"
 # settings a rerun may change (the team too)
@@ -37,32 +38,54 @@ def take_directory(directory: Path, what: str = "labelling directory") -> DirLoc
     return lock
 
 
-def check_offline_settings(directory: Path, settings: dict[str, Any]) -> list[str]:
-    """ValueError naming each setting that differs from those the directory began with;
-    else the continuable ones a rerun changes, as `--name new (was old)`, to be said."""
+def check_offline_settings(
+    directory: Path, settings: dict[str, Any], gold: GoldPairs | None = None
+) -> list[str]:
+    """ValueError naming each setting that differs from those the directory began with
+    (its labels' task and segment length too, and its gold pairs); else the continuable
+    ones a rerun changes, as `--name new (was old)`, to be said."""
     if not (directory / DB_NAME).exists():
         return []
     db = LabelDB.in_dir(directory)
     try:
         stored = db.get_meta(SETTINGS_KEY)
         saved = json.loads(stored) if stored is not None else _from_sessions(db)
+        differences = [
+            f"--{name.replace('_', '-')} {saved[name]} (not {settings.get(name)})"
+            for name in sorted(saved)
+            if name not in CONTINUABLE and saved[name] != settings.get(name)
+        ]
+        if differences:
+            raise ValueError(
+                f"labelling directory {directory} was started with {', '.join(differences)}; "
+                "rerun with its settings to continue, or choose another --out"
+            )
+        _check_labelled(db, directory, settings)
+        if gold is not None:
+            check_gold(db, gold)
     finally:
         db.close()
-    differences = [
-        f"--{name.replace('_', '-')} {saved[name]} (not {settings.get(name)})"
-        for name in sorted(saved)
-        if name not in CONTINUABLE and saved[name] != settings.get(name)
-    ]
-    if differences:
-        raise ValueError(
-            f"labelling directory {directory} was started with {', '.join(differences)}; "
-            "rerun with its settings to continue, or choose another --out"
-        )
     return [
         f"--{name.replace('_', '-')} {_shown(settings.get(name))} (was {_shown(saved[name])})"
         for name in CONTINUABLE
         if name in saved and saved[name] != settings.get(name)
     ]
+
+
+def _check_labelled(db: LabelDB, directory: Path, settings: dict[str, Any]) -> None:
+    """ValueError when the database holds labels of another task or segment length (a
+    directory `label online` or a former version labelled in keeps no settings)."""
+    task, length = (db.get_meta(name) for name in ("task", "segment_length"))
+    where = f"labelling directory {directory} holds labels"
+    if task is not None and json.loads(task) != settings.get("task"):
+        raise ValueError(
+            f"{where} of task {json.loads(task)}, not {settings.get('task')}: choose another --out"
+        )
+    if length is not None and json.loads(length) != settings.get("segment_length"):
+        raise ValueError(
+            f"{where} of {json.loads(length)}-step segments, not {settings.get('segment_length')}: "
+            f"give --segment-length {json.loads(length)} to continue it, or choose another --out"
+        )
 
 
 def _shown(value: Any) -> str:

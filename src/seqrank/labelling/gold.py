@@ -96,25 +96,35 @@ def store_gold(db: LabelDB, gold: GoldPairs) -> tuple[tuple[int, int, bool], ...
     """Keep the gold segments and pairs in the database (the same again on a restart);
     returns the pairs as segment ids. ValueError, with nothing stored, when the database
     holds other gold."""
-    stored, source = db.get_meta(GOLD_META), db.get_meta(GOLD_SOURCE)
-    other = (
-        f"this labelling directory was started with the gold pairs of {source}, not "
-        f"{gold.source}'s: give that file again (or leave --gold out: the directory keeps "
-        "its gold), or label in another directory"
-    )
-    if stored is None:
+    check_gold(db, gold)
+    if db.get_meta(GOLD_META) is None:
         db.store_segments(GOLD_RUN, 0, gold.segments)
-    elif not np.array_equal(db.pool(GOLD_RUN, 0).features, gold.segments.features):
-        raise ValueError(other)
-    ids = db.segment_ids(GOLD_RUN, 0)
-    pairs = tuple((ids[a], ids[b], first) for a, b, first in gold.pairs)
-    given = json.dumps([list(pair) for pair in pairs])
-    if stored is not None and stored != given:
-        raise ValueError(other)
-    db.set_meta(GOLD_META, given)
-    if source is None:
+    pairs = _pair_ids(db, gold)
+    db.set_meta(GOLD_META, json.dumps([list(pair) for pair in pairs]))
+    if db.get_meta(GOLD_SOURCE) is None:
         db.set_meta(GOLD_SOURCE, gold.source)
     return pairs
+
+
+def check_gold(db: LabelDB, gold: GoldPairs) -> None:
+    """ValueError when the database holds gold pairs other than `gold` (read only: a
+    command checks this before it starts anything)."""
+    stored = db.get_meta(GOLD_META)
+    if stored is None:
+        return
+    same = np.array_equal(db.pool(GOLD_RUN, 0).features, gold.segments.features)
+    if not same or stored != json.dumps([list(pair) for pair in _pair_ids(db, gold)]):
+        raise ValueError(
+            f"this labelling directory was started with the gold pairs of "
+            f"{db.get_meta(GOLD_SOURCE)}, not {gold.source}'s: give that file again (or leave "
+            "--gold out: the directory keeps its gold), or label in another directory"
+        )
+
+
+def _pair_ids(db: LabelDB, gold: GoldPairs) -> tuple[tuple[int, int, bool], ...]:
+    """`gold`'s pairs as the ids its segments are stored under."""
+    ids = db.segment_ids(GOLD_RUN, 0)
+    return tuple((ids[a], ids[b], first) for a, b, first in gold.pairs)
 
 
 def stored_gold(db: LabelDB) -> tuple[tuple[int, int, bool], ...]:
