@@ -133,6 +133,54 @@ def test_a_learned_reward_labels_the_dataset_fits_and_trains_on_it(dataset, tmp_
     assert not other.exists()
 
 
+LEARNED = {"reward": "learned", "scheme": "root", "teacher": "oracle", "max_feedback": 20,
+           "segment_length": 10, "session_questions": 10}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("at", "said"),
+    [
+        ("label_dataset", "interrupted while labelling the dataset, before training began: "
+         "removed {out}\n"),
+        ("fit_reward", "interrupted while fitting the reward, before training began: removed "
+         "{out} and its labels (oracle's; the same command asks again)\n"),
+    ],
+)  # fmt: skip
+def test_ctrl_c_while_the_labels_are_asked_or_fitted(
+    at, said, dataset, tmp_path, monkeypatch, capsys
+):
+    """A first Ctrl-C lets the labels and the fit finish, keeps them and stops the run at
+    update 0 (resumable); a second stops at once: the run directory made by the same
+    command is removed, and a line says so and what went with it."""
+    import signal
+
+    from seqrank.offline import labelling
+
+    real = getattr(labelling, at)
+
+    def first_ctrl_c(*args, **kwargs):
+        signal.raise_signal(signal.SIGINT)
+        return real(*args, **kwargs)
+
+    command = ["offline", "train", "--dataset", str(dataset), "--quiet", *flags(LEARNED),
+               *flags(TINY)]  # fmt: skip
+    monkeypatch.setattr(labelling, at, first_ctrl_c)
+    kept = tmp_path / "kept"
+    assert main([*command, "--out", str(kept)]) == 130
+    again = "stopped at update 0, checkpoint saved; continue with: seqrank offline train --"
+    assert capsys.readouterr().err.endswith(f"{again}resume {kept}\n")
+    assert (kept / "labels.jsonl").is_file() and (kept / "learned_rewards.npy").is_file()
+
+    def second_ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt  # what the second signal raises
+
+    monkeypatch.setattr(labelling, at, second_ctrl_c)
+    out = tmp_path / "runs" / "run"
+    assert main([*command, "--out", str(out)]) == 130
+    assert capsys.readouterr().err.endswith(said.format(out=out))
+    assert not (tmp_path / "runs").exists()
+
+
 BUDGET = {"reward": "learned", "scheme": "pairwise", "max_feedback": 5000}  # 20 segments there
 BAD = {  # case -> (options, text the one line must hold); "DATA": the test's dataset
     "missing dataset": ({"dataset": "nothing"}, "no Minari dataset at"),

@@ -120,10 +120,32 @@ def start_new(
     run = RunDir.create(Path(path), config, str(resolve_device(config.device)))
     try:
         trainer = build_trainer(config, run, dataset, progress, say)
+    except KeyboardInterrupt:  # a second Ctrl-C: there is nothing to resume yet
+        when, lost = _interrupted(config, run.path)
+        run.discard()
+        if say is not None:
+            kept = " (the empty folder given is kept)" if Path(path).exists() else ""
+            say(f"interrupted {when}, before training began: removed {path}{kept}{lost}")
+        raise
     except BaseException:
         run.discard()
         raise
     return OfflineStarted(run, config, trainer, resumed=False)
+
+
+def _interrupted(config: OfflineConfig, folder: Path) -> tuple[str, str]:
+    """What a new run stopped by a second Ctrl-C before its first update was doing, and
+    what went with it: the learned reward's labels are not kept then, since every teacher
+    a run may ask answers them again when the same command runs (`--teacher human`, the
+    page, is refused: its labels come in a label file, outside the run)."""
+    from seqrank.offline.rewards import LABELS
+
+    if config.reward != "learned":
+        return "while preparing the run", ""
+    if not (folder / LABELS).is_file():
+        return "while labelling the dataset", ""
+    teacher = config.teacher
+    return "while fitting the reward", f" and its labels ({teacher}'s; the same command asks again)"
 
 
 def read_config(run: RunDir) -> OfflineConfig:
