@@ -55,6 +55,26 @@ def test_a_run_trains_evaluates_and_writes_its_rows_and_summary(dataset, tmp_pat
     assert (out / "checkpoint.pt").is_file()
 
 
+def test_a_task_without_a_success_signal_reports_no_success_rate(tmp_path, capsys):
+    """DMControl has no success signal: as `dataset info` gives its dataset's success as
+    null, the run's summary does (not 0.0), and the printed summary shows none."""
+    from seqrank.offline.make import describe
+    from support.datasets import write_datasets
+
+    data = write_datasets(tmp_path / "data")["dataset"]  # dmc:cartpole_swingup
+    out = tmp_path / "run"
+    short = {**TINY, "steps": 20, "eval_every": 20, "eval_episodes": 1, "batch": 16}
+    code = main(["offline", "train", "--dataset", data, "--out", str(out), "--quiet",
+                 *flags(short)])  # fmt: skip
+    printed = capsys.readouterr().out
+    assert code == 0 and "eval return" in printed and "success rate" not in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert describe(data)["success_rate"] is None
+    assert summary["final_eval_success_rate"] is None
+    assert summary["best_eval_success_rate"] is None and summary["success_curve"] is None
+    assert summary["final_eval_return"] is not None and len(summary["eval_curve"]) == 1
+
+
 class StopAt:
     """A stop request that arrives once the trainer has made `step` updates."""
 

@@ -6,7 +6,8 @@ run continues the same numbers); every `log_every` updates a `train` row, every
 `eval_every` updates (and at the last) an evaluation in the environment and a checkpoint.
 Evaluation plays one episode per seed with the policy's mean action, the seeds drawn as an
 online run's are (`training.state.episode_seed(seed, 1, evaluation, episode)`), and scores
-return and success rate (Meta-World's `info["success"]` at any step).
+return and success rate (Meta-World's `info["success"]` at any step); the summary's
+success is null where the task has no success signal (DMControl), as `dataset info`'s.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import torch
 from seqrank.agents.iql import IQL
 from seqrank.buffer import Batch
 from seqrank.envs import make_env
+from seqrank.envs.scoring import Metric, task_metric
 from seqrank.offline.dataset import OfflineDataset
 from seqrank.offline.settings import OfflineConfig
 from seqrank.training.runs import RunDir
@@ -199,9 +201,13 @@ class OfflineTrainer:
         self.run.truncate_metrics(self.counters.step, state["metric_rows"])
 
     def summary(self) -> dict[str, Any]:
+        """The finished run's numbers; success is None (null) where the task has no success
+        signal (DMControl; a Gymnasium task that never recorded one), as `dataset info`
+        and the report decide (`envs.scoring.task_metric`)."""
         c, counters, dataset = self.config, self.counters, self.dataset
         returns = [r for _, r in counters.eval_curve]
         successes = [s for _, s in counters.success_curve]
+        scored = task_metric(dataset.task, successes) is Metric.SUCCESS
         learned = c.reward == "learned"
         dataset_returns = dataset.episode_returns()
         return {
@@ -217,10 +223,10 @@ class OfflineTrainer:
             "steps": counters.step,
             "final_eval_return": returns[-1] if returns else None,
             "best_eval_return": max(returns) if returns else None,
-            "final_eval_success_rate": successes[-1] if successes else None,
-            "best_eval_success_rate": max(successes) if successes else None,
+            "final_eval_success_rate": successes[-1] if successes and scored else None,
+            "best_eval_success_rate": max(successes) if successes and scored else None,
             "eval_curve": [list(point) for point in counters.eval_curve],  # as JSON reads it
-            "success_curve": [list(point) for point in counters.success_curve],
+            "success_curve": [list(p) for p in counters.success_curve] if scored else None,
             "dataset_episodes": dataset.episode_count,
             "dataset_transitions": len(dataset),
             "dataset_return_mean": float(dataset_returns.mean()),
