@@ -99,6 +99,15 @@ class Selection(StrEnum):
     ENTROPY = "entropy"
 
 
+class SegmentOrder(StrEnum):
+    """The order a session's new segments reach its scheme (issue 46)."""
+
+    UNIFORM = "uniform"  # as drawn: a uniform episode, a uniform start (PEBBLE's sampling)
+    # the same segments in the order they were collected: later, better segments challenge
+    # an early root (the paper's section D.6 counts suggest its stream came so)
+    COLLECTION = "collection"
+
+
 def check_path(path: str, precision: str, discrete: bool) -> None:
     """A SettingError for a path and precision that do not go together (whatever the
     device)."""

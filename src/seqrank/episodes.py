@@ -54,10 +54,17 @@ class EpisodeStore:
         return np.array([e.reward.sum() for e in list(self.episodes)[-count:]])
 
     def sample_segments(
-        self, count: int, length: int, rng: np.random.Generator, last: int = 0
+        self,
+        count: int,
+        length: int,
+        rng: np.random.Generator,
+        last: int = 0,
+        in_order: bool = False,
     ) -> Segments:
         """`count` segments cut at a uniform episode and a uniform start; with `last`, a
-        uniform episode of the last `last` stored (QPA's policy-aligned queries).
+        uniform episode of the last `last` stored (QPA's policy-aligned queries); with
+        `in_order`, the same segments (the same draws) in the order they were collected:
+        by `collected` (the episode), then by start.
 
         An episode shorter than `length` (a Gymnasium task that ended in a terminal state)
         gives its whole self, padded with its last step repeated at zero true reward: what
@@ -65,10 +72,14 @@ class EpisodeStore:
         """
         episodes = list(self.episodes)[-last:] if last else list(self.episodes)
         which = rng.integers(len(episodes), size=count)
+        starts = [int(rng.integers(max(len(episodes[e].reward) - length, 0) + 1)) for e in which]
+        order = range(count)
+        if in_order:
+            keys = (np.array(starts), which, self.collected(which, last))
+            order = np.lexsort(keys).tolist()
         features, rewards, states, contexts = [], [], [], []
-        for e in which:
-            episode = episodes[e]
-            start = int(rng.integers(max(len(episode.reward) - length, 0) + 1))
+        for k in order:
+            episode, start = episodes[which[k]], starts[k]
             stop = start + length
             obs, action = (
                 _pad(episode.obs[start:stop], length),
@@ -82,6 +93,11 @@ class EpisodeStore:
             )
             contexts.append(episode.context)
         return Segments(np.stack(features).astype(np.float32), np.stack(rewards), states, contexts)
+
+    def collected(self, which: np.ndarray, last: int = 0) -> np.ndarray:
+        """When the episodes `which` (positions among those `sample_segments` cuts from)
+        were collected, as a sort key: their positions, stored in the order added."""
+        return which
 
     def state_dict(self) -> dict[str, Any]:
         return {"keep": self.episodes.maxlen, "episodes": list(self.episodes), "added": self.added}

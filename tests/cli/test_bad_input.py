@@ -114,6 +114,19 @@ CASES = [
         "--query-episodes 30 exceeds --episodes-kept 20: segments are cut from the",
     ),
     ([*TRAIN, "--reward", "true", "--hybrid-replay", "0.5"], "--reward 'true' asks none: leave"),
+    ([*TRAIN, "--segment-order", "sideways"], "unknown --segment-order 'sideways'; accepted: uni"),
+    (
+        [*TRAIN, "--segment-order", "collection", "--reward", "none"],
+        "--segment-order collection orders the segments of questions; --reward 'none' asks none",
+    ),
+    (
+        [*TRAIN, "--segment-order", "collection", "--selection", "entropy"],
+        "--segment-order collection gives the scheme its segments as they come; --selection ent",
+    ),
+    (
+        [*TRAIN, "--segment-order", "collection", "--teacher", "replay:{labels}"],
+        "replays recorded segments; --segment-order collection orders new ones: leave it out",
+    ),
     (
         [*TRAIN, "--reward", "true", "--reward-learner", "rime"],
         "--reward-learner acts on what answers teach the reward model; --reward 'true' asks",

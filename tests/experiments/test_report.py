@@ -263,9 +263,15 @@ def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
     )
     warm = dict(reward_learner="rime", warm_start=1)
     fake_run(tmp_path / "root_rime_warm", "walker_walk", "root", 0, [1.0, 380.0], **warm)
+    in_order = dict(segment_order="collection")
+    fake_run(tmp_path / "root_collection", "walker_walk", "root", 0, [1.0, 390.0], **in_order)
+    fake_run(tmp_path / "root_uniform", "walker_walk", "root", 1, [1.0, 310.0], **in_order)
+    (tmp_path / "root_uniform" / "config.json").write_text(
+        (tmp_path / "root_uniform" / "config.json").read_text().replace("collection", "uniform")
+    )  # (named as the runs written before the setting, which lack it)
     assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
     report = json.loads((tmp_path / "r" / "report.json").read_text())
-    methods = ["root", "root+checked", "root+rime+qpa", "root+rime+warm"]
+    methods = ["root", "root+checked", "root+collection", "root+rime+qpa", "root+rime+warm"]
     assert sorted(report["methods"]) == methods
     assert report["notes"] == []  # nothing else differs: no split
 

@@ -48,7 +48,8 @@ def test_the_collection_order_gives_the_uniform_segments_in_the_order_collected(
     pool = labelled_pool()
     train, _ = pool.split()
     uniform = pool.store(train).sample_segments(30, 20, np.random.default_rng(5))
-    ordered = CollectionOrder(pool, train).sample_segments(30, 20, np.random.default_rng(5))
+    store, rng = CollectionOrder(pool, train), np.random.default_rng(5)
+    ordered = store.sample_segments(30, 20, rng, in_order=True)
     keys = collection_keys(pool, ordered.features)
     assert keys == sorted(keys) and keys[0][0] == -1  # random play first, then by origin
     assert sorted(map(tuple, ordered.features[:, 0, :2])) == sorted(

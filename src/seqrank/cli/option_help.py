@@ -45,6 +45,8 @@ MEANINGS = {
     "recheck_twice_gain": "checked: ... twice from this many on, once contradicted",
     "path_unchecked": "checked: unconfirmed answers allowed on an inferred pair's path",
     "selection": "which segments are asked about: uniform, disagreement, entropy",
+    "segment_order": "a session's new segments as drawn (uniform) or in the order they "
+    "were collected (collection: later segments challenge an early root)",
     "oversample": "disagreement and entropy: candidates per question",
     "episodes_kept": "recent episodes that segments are cut from",
     "overlap": "a crowd's share of answers also asked of a second member, for agreement (0 to 1)",

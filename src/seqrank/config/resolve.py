@@ -101,4 +101,5 @@ def validate(config: TrainConfig) -> None:
     rules.check_learner(config)
     rules.check_fine_tuning(config)
     rules.check_qpa(config)
+    rules.check_segment_order(config)
     rules.check_crowd(config)

@@ -13,7 +13,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from seqrank.choices import Backbone, Selection
+from seqrank.choices import Backbone, SegmentOrder, Selection
 from seqrank.config.train_config import TrainConfig
 from seqrank.envs import canonical_task
 from seqrank.errors import SettingError, setting
@@ -49,6 +49,30 @@ def check_qpa(config: TrainConfig) -> None:
             f"{setting('parts')} {config.parts!r} replaces a session's episodes with fresh "
             "ones of the current policy (aligned already, one per skill level); "
             f"{setting('query_episodes')} would drop some: leave it out"
+        )
+
+
+def check_segment_order(config: TrainConfig) -> None:
+    """Collection order hands a session's new segments to its scheme as collected: it
+    needs new segments, taken as they come."""
+    if config.segment_order is SegmentOrder.UNIFORM:
+        return
+    order = f"{setting('segment_order')} {config.segment_order}"
+    if not config.reward.asks:
+        raise SettingError(
+            f"{order} orders the segments of questions; {setting('reward')} "
+            f"'{config.reward}' asks none: leave it out"
+        )
+    if config.teacher_spec.kind == "replay":
+        raise SettingError(
+            f"{setting('teacher')} '{config.teacher}' replays recorded segments; {order} "
+            "orders new ones: leave it out"
+        )
+    if config.selection is not Selection.UNIFORM:
+        raise SettingError(
+            f"{order} gives the scheme its segments as they come; {setting('selection')} "
+            f"{config.selection} picks among them by the model: use one of the two "
+            f"({setting('selection')} uniform with {order})"
         )
 
 

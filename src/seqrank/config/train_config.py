@@ -21,6 +21,7 @@ from seqrank.choices import (
     RewardLearner,
     RewardSignal,
     Scale,
+    SegmentOrder,
     Selection,
     StopOn,
     TrainingPath,
@@ -55,6 +56,7 @@ CHOICES: dict[str, type[Any]] = {
     "scheme": SchemeName,
     "backbone": Backbone,
     "selection": Selection,
+    "segment_order": SegmentOrder,
     "scale": Scale,
     "device": Device,
     "path": TrainingPath,
@@ -158,6 +160,8 @@ class TrainConfig:
     recheck_twice_gain: int = declare(Role.FEEDBACK, Recheck.twice_gain, COUNT)
     path_unchecked: int = declare(Role.FEEDBACK, Recheck.path_unchecked, COUNT_FROM_ZERO)
     selection: Selection = declare(Role.FEEDBACK, Selection.UNIFORM)
+    # a session's new segments as drawn, or in the order they were collected
+    segment_order: SegmentOrder = declare(Role.FEEDBACK, SegmentOrder.UNIFORM)
     # each session allocates at once a candidate pool this many times what the scheme needs
     oversample: int = declare(Role.FEEDBACK, 10, Count(high=100))
     episodes_kept: int = declare(Role.FEEDBACK, 100, COUNT)

@@ -18,7 +18,14 @@ from seqrank.episodes import EpisodeStore, Segments
 from seqrank.feedback.checking import Recheck, standing_vouched
 from seqrank.feedback.closure import AugmentationStats, augment
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import Ask, Chooser, SessionRecord, get_scheme, segments_needed
+from seqrank.feedback.schemes import (
+    Ask,
+    Chooser,
+    SessionRecord,
+    get_scheme,
+    in_order_choice,
+    segments_needed,
+)
 from seqrank.feedback.selection import make_chooser
 from seqrank.feedback.teachers import ScriptedTeacher
 from seqrank.reward.model import RewardModel
@@ -185,6 +192,7 @@ class SessionPlan:
     recheck: Recheck | None = None
     query_episodes: int = 0  # QPA: cut the pool from the last N episodes only (0: all kept)
     crowd: int = 0  # the members of a crowd answering the sessions (0: one teacher)
+    order: str = "uniform"  # a session's new segments as drawn, or "collection": as collected
 
 
 @dataclass(frozen=True)
@@ -220,19 +228,43 @@ def prepare_session(
     (`LabelStore.teacher_contradicted`); `augment checked` then asks big answers twice more.
     `model_fit`: the reward model has been fit to labels; `augment checked` then does not
     ask again a teacher who has never contradicted themselves where the model agrees.
+
+    `plan.order` "collection" gives the scheme the same segments in the order they were
+    collected (`EpisodeStore.sample_segments`' `in_order`), so that later, better segments
+    challenge an early root, as the paper's section D.6 counts suggest its stream did.
     """
     chains = max(1, plan.crowd)
     needed = segments_needed(plan.scheme, questions, chains)
     use_model = informative and plan.selection != "uniform"
     pool = needed * (plan.oversample if use_model else 1)
     last = plan.query_episodes
-    sampled = episodes.sample_segments(pool, plan.segment_length, rng, last)
+    in_order = plan.order == "collection"
+    sampled = episodes.sample_segments(pool, plan.segment_length, rng, last, in_order)
     member_returns = reward_model.member_returns(sampled.features) if use_model else None
     chooser = make_chooser(plan.selection if use_model else "uniform", member_returns)
+    if in_order:  # (taken as they come: a selection picking among them is refused)
+        chooser = in_order_choice
     window = episodes.window(last) if last else None
-    recheck, opinions = plan.recheck, None
+    opinions = None
     if plan.crowd and model_fit:
         opinions = tuple(reward_model.member_returns(sampled.features).mean(axis=0).tolist())
+    recheck = _recheck(plan.recheck, contradicted, model_fit, member_returns, sampled, reward_model)
+    return SessionRequest(
+        plan.scheme, questions, session, sampled, chooser, rng, margin, recheck=recheck,
+        episodes=window, model_returns=opinions, chains=chains,
+    )  # fmt: skip
+
+
+def _recheck(
+    recheck: Recheck | None,
+    contradicted: bool,
+    model_fit: bool,
+    member_returns: np.ndarray | None,
+    sampled: Segments,
+    reward_model: RewardModel,
+) -> Recheck | None:
+    """`augment checked`'s settings for the session: told whether the teacher has
+    contradicted themselves, and the fitted model's view of each candidate."""
     if recheck is not None and contradicted:
         recheck = replace(recheck, contradicted=True)
     if recheck is not None and model_fit:
@@ -240,19 +272,7 @@ def prepare_session(
             member_returns = reward_model.member_returns(sampled.features)
         predicted = member_returns.mean(axis=0)
         recheck = replace(recheck, model_returns=tuple(predicted.tolist()))
-    return SessionRequest(
-        plan.scheme,
-        questions,
-        session,
-        sampled,
-        chooser,
-        rng,
-        margin,
-        recheck=recheck,
-        episodes=window,
-        model_returns=opinions,
-        chains=chains,
-    )
+    return recheck
 
 
 def store_session(

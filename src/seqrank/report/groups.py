@@ -35,6 +35,7 @@ SAME_METHOD = {
     "augment",
     "reward_learner",
     "warm_start",
+    "segment_order",
 }
 # settings only one reward learner reads: runs of another learner may hold any value (or,
 # made before the setting existed, none)

@@ -68,8 +68,8 @@ def method_names(runs: list[RunResult]) -> dict[Path, str]:
 
 
 def beyond_the_paper(settings: Mapping[str, Any]) -> str:
-    """`+checked`, `+surf` or `+rime`, `+warm`, `+qpa`: the options beyond the paper a run
-    used."""
+    """`+checked`, `+surf` or `+rime`, `+warm`, `+qpa`, `+collection`: the options beyond
+    the paper a run used."""
     marks = ""
     if settings.get("augment", "full") != "full":
         marks += f"+{settings['augment']}"
@@ -79,6 +79,8 @@ def beyond_the_paper(settings: Mapping[str, Any]) -> str:
         marks += "+warm"
     if settings.get("query_episodes") or settings.get("hybrid_replay"):
         marks += "+qpa"
+    if settings.get("segment_order", "uniform") != "uniform":
+        marks += f"+{settings['segment_order']}"  # (as the reward benchmark names it)
     return marks
 
 

@@ -59,7 +59,7 @@ from seqrank.episodes import EpisodeStore, Segments
 from seqrank.feedback.checking import Recheck
 from seqrank.feedback.closure import AugmentationStats
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.schemes import SessionRecord, in_order_choice
+from seqrank.feedback.schemes import SessionRecord
 from seqrank.feedback.session import FeedbackSource, SessionPlan, prepare_session, store_session
 from seqrank.feedback.sources import make_source
 from seqrank.feedback.teachers import parse_teacher
@@ -225,8 +225,6 @@ class _CellRun:
                 False, self.episodes.margin(self.session), labels.teacher_contradicted(),
                 self.fitted,
             )  # fmt: skip
-            if self.cell.order == "collection":  # the segments as sorted, in that order
-                request = replace(request, chooser=in_order_choice)
             request = replace(request, distrusted=labels.distrusted())  # (reask's)
             segments, record = self.source.ask_session(request)
             closure = self.cell.augment != "none"
@@ -287,11 +285,13 @@ def run_cell(
 
 
 def _plan(cell: Cell, settings: BenchSettings) -> SessionPlan:
-    """A cell's sessions: uniform selection, `checked`'s repeats, a crowd's chains."""
+    """A cell's sessions: uniform selection, `checked`'s repeats, a crowd's chains, the
+    order of its new segments."""
     recheck = Recheck() if cell.augment == "checked" else None
     crowd = len(parse_teacher(cell.teacher).members) if cell.teacher != "replay" else 0
+    length = settings.segment_length
     return SessionPlan(
-        cell.scheme, "uniform", 1, settings.segment_length, recheck=recheck, crowd=crowd
+        cell.scheme, "uniform", 1, length, recheck=recheck, crowd=crowd, order=cell.order
     )
 
 

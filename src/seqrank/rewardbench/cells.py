@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from seqrank.choices import SegmentOrder
+
 # the grid's axes besides task and seed, with the value a row written before the axis
 # existed stands for (a new axis: a `Cell` field, an entry here, a `_row` key)
 AXES = {
@@ -20,7 +22,7 @@ AXES = {
 # the values of the fitting controls (issue 46, item 2)
 AUGMENTS = ("full", "checked", "none")  # none: closure off, the asked pairs alone
 STOPS = ("all", "asked", "never")  # the early stop's accuracy over; never: every epoch
-ORDERS = ("uniform", "collection")  # a session's new segments: as drawn, or as collected
+ORDERS = tuple(o.value for o in SegmentOrder)  # a session's new segments: as drawn, or as collected
 
 
 @dataclass(frozen=True)

@@ -8,11 +8,9 @@ D.6 counts suggest its stream did."""
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
-from seqrank.episodes import EpisodeStore, Segments
+from seqrank.episodes import EpisodeStore
 from seqrank.rewardbench.pool import Pool
 
 
@@ -26,24 +24,8 @@ class CollectionOrder(EpisodeStore):
             self.add(episode)
         self.origins = pool.origin[which]
 
-    def sample_segments(
-        self, count: int, length: int, rng: np.random.Generator, last: int = 0
-    ) -> Segments:
-        """`EpisodeStore.sample_segments`'s segments, in rising collection order: the
-        draws it makes are read from a copy of `rng` first (an episode each, then a start
-        each), which gives every segment's episode and start."""
-        probe = copy.deepcopy(rng)
-        cut = super().sample_segments(count, length, rng, last)
-        episodes = list(self.episodes)[-last:] if last else list(self.episodes)
+    def collected(self, which: np.ndarray, last: int = 0) -> np.ndarray:
+        """The pool's `origin` of each episode (random play first, then the run's episodes
+        by number): a pool's store is not in collection order."""
         origins = self.origins[-last:] if last else self.origins
-        which = probe.integers(len(episodes), size=count)
-        starts = np.array(
-            [probe.integers(max(len(episodes[e].reward) - length, 0) + 1) for e in which]
-        )
-        order = np.lexsort((starts, which, origins[which]))  # by origin, episode, then start
-        return Segments(
-            cut.features[order],
-            cut.rewards[order],
-            [cut.states[k] for k in order],
-            [cut.contexts[k] for k in order],
-        )
+        return np.asarray(origins[which])

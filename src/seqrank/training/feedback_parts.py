@@ -39,6 +39,7 @@ def session_plan(config: TrainConfig) -> SessionPlan:
         recheck=config.recheck,
         query_episodes=config.query_episodes,
         crowd=len(config.team),
+        order=config.segment_order.value,
     )
 
 
