@@ -35,3 +35,13 @@ def test_the_page_flags_whom_training_drops_and_says_what_it_rests_on():
     assert {n: r.estimate for n, r in trained.items()} == {
         n: s["reliability"] for n, s in shown.items()
     }
+
+
+def test_answers_per_minute_count_the_time_spent_answering_not_the_breaks():
+    from seqrank.labelling.crowd_report import BREAK_S, answers_per_minute
+
+    first = [10.0 * k for k in range(7)]  # an answer every 10 s: 6 a minute
+    after_a_break = [first[-1] + 3600.0 + 10.0 * k for k in range(7)]  # an hour stopped
+    assert answers_per_minute(first) == answers_per_minute(first + after_a_break) == 6.0
+    assert answers_per_minute([0.0, BREAK_S]) == 60.0 / BREAK_S  # (a long pause, not a break)
+    assert answers_per_minute([5.0]) is None and answers_per_minute([0.0, 3 * BREAK_S]) is None

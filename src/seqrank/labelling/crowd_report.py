@@ -9,6 +9,7 @@ from collections import Counter, defaultdict
 from statistics import median
 from typing import Any
 
+import numpy as np
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import HTMLResponse
 
@@ -18,6 +19,8 @@ from seqrank.labelling.access import OPERATOR
 from seqrank.labelling.crowd_keys import GOLD_CHECKS
 from seqrank.labelling.human import Hub
 from seqrank.labelling.server import STATIC
+
+BREAK_S = 120.0  # a gap between two answers longer than this is a break, not answering
 
 
 def operator_routes(hub: Hub) -> APIRouter:
@@ -79,16 +82,23 @@ def operator_view(hub: Hub, base: str) -> dict[str, Any]:
 
 
 def _pace(rows: list[Any]) -> dict[str, Any]:
-    """Answers, answers per minute (over the span of their answers), time-outs and the
-    median latency."""
-    times = [r["answered_at"] for r in rows]
-    span = (max(times) - min(times)) / 60.0 if len(times) > 1 else 0.0
+    """Answers, answers per minute (over the time between their answers, a break left
+    out), time-outs and the median latency."""
     return {
         "answers": len(rows),
-        "per_minute": len(rows) / span if span > 0 else None,
+        "per_minute": answers_per_minute([r["answered_at"] for r in rows]),
         "timeouts": sum(r["choice"] == "timeout" for r in rows),
         "median_latency_ms": median(r["latency_ms"] for r in rows) if rows else None,
     }
+
+
+def answers_per_minute(times: list[float]) -> float | None:
+    """Answers a minute while answering: over the gaps between consecutive answers, each
+    longer than `BREAK_S` left out (the page stopped, the agent training between sessions,
+    a person away); None before two answers close enough to time."""
+    gaps = np.diff(np.sort(np.asarray(times, dtype=float)))
+    kept = gaps[gaps <= BREAK_S]
+    return len(kept) / (kept.sum() / 60.0) if kept.sum() > 0 else None
 
 
 def _reliability(
