@@ -99,6 +99,30 @@ def test_projection_adds_steps_sessions_and_evaluations():
     assert "| CUDA graph capture (s) | 2.00 |" in cuda
 
 
+@pytest.mark.parametrize("there", [".json", ".md"])
+def test_a_bench_refuses_a_result_already_there(there, tmp_path, monkeypatch, capsys):
+    """OUT.json and OUT.md are new files: one already there is refused in one line before
+    anything is timed (it was overwritten silently), and nothing is written."""
+    from seqrank.bench import suite
+
+    def timed(*args, **kwargs):
+        raise AssertionError("timed")
+
+    monkeypatch.setattr(suite, "run_bench", timed)
+    out = tmp_path / "bench-cpu"
+    out.with_suffix(there).write_text("mine\n")
+    args = ["bench", "--task", "dmc:cartpole_swingup", "--device", "cpu", *TINY]
+    assert main([*args, "--out", str(out)]) == 2
+    said = capsys.readouterr().err
+    written = out.with_suffix(there)
+    assert said.endswith(
+        f"bench result {written} already exists; choose another --out or remove it\n"
+    )
+    assert said.count("\n") == 1
+    assert [p.name for p in tmp_path.iterdir()] == [written.name]
+    assert written.read_text() == "mine\n"
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

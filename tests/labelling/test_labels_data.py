@@ -324,6 +324,30 @@ def test_online_run_stopped_mid_session_resumes_at_the_first_unanswered_question
     hub.renderer.close()
 
 
+def test_export_refuses_a_file_already_there_and_writes_nothing(label_file, tmp_path, capsys):
+    """`labels export -o FILE` writes a new file: one already there is refused in one line
+    and left as it was (it was overwritten silently), from a labelling directory and a run."""
+    db = LabelDB.in_dir(tmp_path / "labels")
+    import_file(db, label_file)
+    db.close()
+    run = RunDir.create(tmp_path / "run", tiny_config(), "cpu")
+    run.release()
+    kept = tmp_path / "kept.jsonl"
+    kept.write_text("mine\n")
+    for source in ("labels", "run"):
+        assert main(["labels", "export", str(tmp_path / source), "-o", str(kept)]) == 2
+        said = capsys.readouterr().err
+        assert said.endswith(
+            f"label file {kept} already exists; choose another --output or remove it\n"
+        )
+        assert said.count("\n") == 1
+        assert kept.read_text() == "mine\n"
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.jsonl", "labels", "run"]
+    fresh = tmp_path / "new.jsonl"
+    assert main(["labels", "export", str(tmp_path / "labels"), "-o", str(fresh)]) == 0
+    assert len(read_label_file(fresh).answers) == 8
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

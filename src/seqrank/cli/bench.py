@@ -66,7 +66,8 @@ def add_parser(commands: Any) -> None:
     bench.add_argument(
         "--out",
         type=Path,
-        help="output path without suffix (default: seqrank-out/bench/bench-<device>)",
+        help="output path without suffix: OUT.json and OUT.md, not files already there "
+        "(default: seqrank-out/bench/bench-<device>)",
     )
     bench.add_argument(
         "--dry-run", action="store_true", help="check the options, print the plan, time nothing"
@@ -102,14 +103,12 @@ def _add_rounds(bench: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.bench.report import format_markdown
     from seqrank.bench.suite import BenchPlan, run_bench
-    from seqrank.dirs import check_file
     from seqrank.training.runtime import resolve_device
 
     try:
         device = resolve_device(args.device)
         path = args.out or Path("seqrank-out/bench") / f"bench-{device.type}"
-        for suffix in (".json", ".md"):
-            check_file(path.with_suffix(suffix), "--out")
+        _check_new(path)
         precisions = _precisions(args.precisions, device.type)
         overrides = parse_overrides(args.set)
         plan = BenchPlan.build(args.task, args.scale, device, precisions, overrides, args)
@@ -138,6 +137,19 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     out.print(markdown, markup=False, highlight=False)
     err.print(f"wrote {path.with_suffix('.json')} and {path.with_suffix('.md')}")
     return 0
+
+
+def _check_new(path: Path) -> None:
+    """The two files a bench writes (OUT.json, OUT.md): one already there is refused (a
+    ValueError) rather than overwritten."""
+    from seqrank.dirs import check_file
+
+    for written in (path.with_suffix(".json"), path.with_suffix(".md")):
+        check_file(written, "--out")
+        if written.exists():
+            raise ValueError(
+                f"bench result {written} already exists; choose another --out or remove it"
+            )
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:

@@ -22,7 +22,9 @@ def add_parser(commands: Any) -> None:
     export.add_argument(
         "directory", type=Path, help="a labelling directory (labels.sqlite) or a run directory"
     )
-    export.add_argument("-o", "--output", type=Path, required=True, help="the JSONL file to write")
+    export.add_argument(
+        "-o", "--output", type=Path, required=True, help="the new JSONL file; not one already there"
+    )
     load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
     load.add_argument("file", type=Path, help="a JSONL file from `seqrank labels export`")
     load.add_argument("directory", type=Path, help="the labelling directory to add them to")
@@ -50,6 +52,10 @@ def _export(directory: Path, output: Path) -> tuple[int, str]:
     from seqrank.labelling.jsonl import export_file
 
     check_file(output, "label file")
+    if output.exists():
+        raise ValueError(
+            f"label file {output} already exists; choose another --output or remove it"
+        )
     if (directory / DB_NAME).is_file():
         return export_file(LabelDB(directory / DB_NAME), output), str(directory / DB_NAME)
     if not (directory / "config.json").is_file():
