@@ -144,7 +144,10 @@ CASES = [
     ([*TRAIN, "--reward-learner", "best"], "unknown --reward-learner 'best'; accepted: plain"),
     ([*TRAIN, "--surf-threshold", "1.5"], "--surf-threshold must be a number in (0, 1], got 1.5"),
     ([*TRAIN, "--surf-unlabelled-ratio", "0"], "--surf-unlabelled-ratio must be a whole number"),
-    ([*TRAIN, "--surf-crop", "50"], "--surf-crop 50 must be smaller than --segment-length 50"),
+    (
+        [*TRAIN, "--reward-learner", "surf", "--surf-crop", "50"],
+        "--surf-crop 50 must be smaller than --segment-length 50",
+    ),
     ([*TRAIN, "--rime-beta-min", "5"], "--rime-beta-min 5.0 exceeds --rime-beta-max 3.0"),
     ([*TRAIN, "--rime-tau-upper", "0.6"], "--rime-tau-upper must be below 0.5, got 0.6"),
     ([*TRAIN, "--rime-decay-updates", "0"], "--rime-decay-updates must be a whole number from 1"),

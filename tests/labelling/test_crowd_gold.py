@@ -220,3 +220,16 @@ def test_a_rerun_without_the_gold_file_keeps_asking_the_directorys_gold(tmp_path
     open_team(again, TEAM, 0.0, 60.0, 0, None)
     assert again.crowd.gold == first and len(first) == PAIRS
     again.db.close()
+
+
+def test_a_dry_run_says_which_gold_pairs_the_team_would_be_shown(tmp_path, capsys):
+    from seqrank.cli import main
+
+    gold = gold_file(tmp_path / "gold.jsonl")
+    argv = ["label", "online", "--device", "cpu", "--port", "0", "--dry-run", "--task", TASK,
+            "--segment-length", "3", "--annotators", ",".join(TEAM), "--gold", str(gold),
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    said = " ".join(capsys.readouterr().err.split())  # (the console wraps long lines)
+    assert f"gold: {PAIRS} pairs from {gold.resolve()}" in said
+    assert not (tmp_path / "run").exists()

@@ -321,8 +321,11 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
         _check_address(args)
 
     started = prepare_run(args, err, make, resolve_device, check)
-    if started is None:
-        return 0  # --dry-run
+    if started is None:  # --dry-run
+        gold = holder.get("gold")
+        if gold is not None:
+            err.print(f"gold: {len(gold.pairs)} pairs from {gold.source}")
+        return 0
     try:
         if started.finished:
             say_finished(started, err)

@@ -164,8 +164,9 @@ def _outside(name: str) -> str:
 
 
 def check_learner(config: TrainConfig) -> None:
-    """The reward learners' settings that depend on each other."""
-    if config.surf_crop >= config.segment_length:
+    """The reward learners' settings that depend on each other (SURF's crop on SURF's
+    runs only: a plain run of short segments is no business of its default)."""
+    if config.reward_learner == "surf" and config.surf_crop >= config.segment_length:
         raise SettingError(
             f"{setting('surf_crop')} {config.surf_crop} must be smaller than "
             f"{setting('segment_length')} {config.segment_length}: a crop keeps at least one "
