@@ -106,6 +106,38 @@ def test_a_start_that_fails_leaves_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []  # the run directory and the folders made for it
 
 
+@pytest.mark.parametrize("given", ["new", "empty"])
+def test_a_second_ctrl_c_while_the_trainer_is_built_says_it_removed_the_run(
+    given, tmp_path, monkeypatch, capsys
+):
+    """Before step 0 there is nothing to resume: a second Ctrl-C while the environment,
+    agent and reward model are built removes the new run directory again (and the folders
+    made for it; an empty folder given is kept), and one line says so (it was silent)."""
+    from seqrank.training import trainer
+
+    def interrupted(*args, **kwargs):
+        signal.raise_signal(signal.SIGINT)  # the first: stop cleanly once training runs
+        signal.raise_signal(signal.SIGINT)  # the second: at once
+        raise AssertionError("a second Ctrl-C interrupts")
+
+    monkeypatch.setattr(trainer, "make_agent", interrupted)
+    out = tmp_path / "runs" / "run"
+    if given == "empty":
+        out.mkdir(parents=True)
+    assert main(["train", *SHORT, "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    kept = " (the empty folder given is kept)" if given == "empty" else ""
+    removed = f"interrupted while preparing the run, before training began: removed {out}{kept}"
+    assert err.splitlines() == [
+        "Ctrl-C: stopping cleanly (saving first; Ctrl-C again stops at once)",
+        removed,
+    ]
+    if given == "empty":
+        assert list(out.iterdir()) == []
+    else:
+        assert list(tmp_path.iterdir()) == []
+
+
 def test_dry_run_checks_and_writes_nothing(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["train", *SHORT, "--dry-run"]) == 0

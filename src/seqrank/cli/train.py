@@ -47,7 +47,9 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     """Ctrl-C or SIGTERM from here on stop the run at its next episode end, with a
-    checkpoint (before training starts: at once, the directory left to --resume)."""
+    checkpoint; a second one stops at once, keeping the last checkpoint. Before training
+    starts a second one stops at once too: a new run's directory is removed again, with a
+    line saying so (nothing to resume yet); a resumed run's is left as it was."""
     from seqrank.training.runtime import resolve_device
     from seqrank.training.stopping import stop_on_signals
     from seqrank.training.trainer import Trainer
@@ -156,7 +158,7 @@ def prepare_run(
         _describe(config, path, new, err)
         _say(err, f"  training path: {_way(runtime)}")
         return None
-    started = start_new(path, config, str(new.device), trainer_cls, wandb)
+    started = start_new(path, config, str(new.device), trainer_cls, wandb, lambda t: _say(err, t))
     way = _way(started.trainer.runtime)
     err.print(f"run directory: {path} ({new.scale} preset, device {new.device}, {way})")
     return started

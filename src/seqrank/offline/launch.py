@@ -121,11 +121,9 @@ def start_new(
     try:
         trainer = build_trainer(config, run, dataset, progress, say)
     except KeyboardInterrupt:  # a second Ctrl-C: there is nothing to resume yet
-        when, lost = _interrupted(config, run.path)
-        run.discard()
+        said = run.discard_interrupted(*_interrupted(config, run.path))
         if say is not None:
-            kept = " (the empty folder given is kept)" if Path(path).exists() else ""
-            say(f"interrupted {when}, before training began: removed {path}{kept}{lost}")
+            say(said)
         raise
     except BaseException:
         run.discard()

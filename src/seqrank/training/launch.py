@@ -2,8 +2,9 @@
 
 - `start_new`: the directory is checked and locked before anything is written; when the
   trainer cannot be built (a replay file that is not there, a segment longer than the
-  task's episodes, settings that do not fit in memory) everything written is removed
-  again, so the same command can run once the problem is fixed.
+  task's episodes, settings that do not fit in memory) or its building is interrupted (a
+  second Ctrl-C, said in a line) everything written is removed again, so the same command
+  can run once the problem is fixed.
 - `continue_run`: locks the run, reads its saved settings (checked against the expected
   ones when given, naming each difference) and its checkpoint; a finished run (with
   `summary.json`) is returned untouched, with no trainer.
@@ -67,11 +68,23 @@ def _first_line(text: str) -> str:
 
 
 def start_new(
-    path: Path, config: TrainConfig, device: str, factory: Factory, wandb: str | None = None
+    path: Path,
+    config: TrainConfig,
+    device: str,
+    factory: Factory,
+    wandb: str | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> Started:
+    """A new run; `say` gets the line that says a second Ctrl-C while the trainer is built
+    removed the directory again (there is nothing to resume yet)."""
     run = RunDir.create(path, config, device, wandb)
     try:
         trainer = build_trainer(factory, config, run)
+    except KeyboardInterrupt:
+        said = run.discard_interrupted("while preparing the run")
+        if say is not None:
+            say(said)
+        raise
     except BaseException:
         run.discard()
         raise

@@ -129,6 +129,14 @@ class RunDir:
         self.release()
         remove_made(self._made)
 
+    def discard_interrupted(self, when: str, lost: str = "") -> str:
+        """`discard` after a second Ctrl-C (or SIGTERM) before training began, when there is
+        nothing to resume yet; the line that says so (`when`: what the start was doing;
+        `lost`: what else went with the directory)."""
+        self.discard()
+        kept = " (the empty folder given is kept)" if self.path.exists() else ""
+        return f"interrupted {when}, before training began: removed {self.path}{kept}{lost}"
+
     @property
     def finished(self) -> bool:
         return (self.path / "summary.json").is_file()
