@@ -1,3 +1,3 @@
-from seqrank.cli import main
+from seqrank.entry import main
 
 raise SystemExit(main())

@@ -1,8 +1,12 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
+import tomllib
+from pathlib import Path
 
 import pytest
 
@@ -155,3 +159,63 @@ def test_every_train_setting_says_what_it_means_in_help():
     assert settings == set(MEANINGS)
     shown = run_cli("train", "--help")
     assert "QPA: cut new segments from the last N episodes only" in " ".join(shown.stdout.split())
+
+
+PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
+ENTRY = tomllib.loads(PYPROJECT.read_text())["project"]["scripts"]["seqrank"]  # module:function
+
+
+def launch(how: str) -> list[str]:
+    """The `seqrank` console script as installed (its wrapper calls the entry point named
+    in pyproject.toml), or `python -m seqrank`."""
+    if how == "python -m seqrank":
+        return [sys.executable, "-m", "seqrank"]
+    module, function = ENTRY.split(":")
+    wrapper = f"from {module} import {function}; raise SystemExit({function}())"
+    return [sys.executable, "-c", wrapper]
+
+
+def torch_mapped(pid: int) -> bool:
+    try:
+        return "/torch/" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:  # not started yet, or ended
+        return False
+
+
+@pytest.mark.parametrize("how", ["console script", "python -m seqrank"])
+def test_ctrl_c_while_the_command_line_loads_is_one_line_and_130(how):
+    """Ctrl-C in the first second or two of any command, while torch and the rest are
+    imported, ends in one line and SIGINT's 130 (it printed a long traceback). The signal
+    goes as soon as torch's libraries are in the process, so inside those imports on a
+    loaded machine too (sooner, it could find Python itself starting, before any of
+    seqrank's code); a command that ended before it is no failure, a traceback is."""
+    if not Path("/proc/self/maps").exists():
+        pytest.skip("needs /proc to see when torch loads")
+    process = subprocess.Popen(
+        [*launch(how), "theory", "--help"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while process.poll() is None and time.monotonic() < deadline:
+        if torch_mapped(process.pid):
+            break
+        time.sleep(0.005)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert "Traceback" not in err, err
+    if process.returncode == 0:
+        assert err == ""  # it ended before the signal: nothing to check
+    else:
+        assert (process.returncode, err) == (130, "interrupted\n")
+
+
+def test_the_entry_point_imports_nothing_heavy():
+    """What the console script imports before its `try` (the entry point's module): not
+    the command line, torch or rich, so that the try holds every slow import."""
+    module = ENTRY.split(":")[0]
+    shown = "print(sorted({'seqrank.cli', 'torch', 'numpy', 'rich'} & set(sys.modules)))"
+    code = f"import sys, {module}; {shown}"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.stdout.strip() == "[]", result.stderr
