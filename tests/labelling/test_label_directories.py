@@ -8,6 +8,7 @@ import signal
 import time
 
 import httpx
+import pytest
 
 from seqrank.cli import main
 from seqrank.labelling.db import LabelDB
@@ -153,3 +154,23 @@ def test_a_directory_of_other_labels_is_refused_before_a_progress_line(
     assert len(err.strip().splitlines()) == 1, err  # not "continuing ... --sessions 2 (was 1)"
     settings = LabelDB.in_dir(tmp_path / "t").get_meta("offline_settings")
     assert json.loads(settings or "{}")["sessions"] == 1
+
+
+def test_a_task_is_the_same_task_however_it_is_spelled(tmp_path):
+    from seqrank.envs import same_task
+    from seqrank.labelling.app import record_task
+    from seqrank.labelling.directory import check_offline_settings, record_offline_settings
+
+    assert same_task("walker_walk", "dmc:walker_walk")
+    assert same_task("window-open", "metaworld:window-open-v3")
+    assert not same_task("walker_walk", "dmc:walker_run")
+    assert not same_task("nonsense", "dmc:nonsense") and same_task("nonsense", "nonsense")
+    began = {"task": "walker_walk", "scheme": "root", "segment_length": 50}
+    db = LabelDB.in_dir(tmp_path)
+    record_offline_settings(db, began)
+    record_task(db, "walker_walk", 24, 6, 50)
+    record_task(db, "dmc:walker_walk", 24, 6, 50)  # a rerun naming it otherwise continues
+    db.close()
+    assert check_offline_settings(tmp_path, {**began, "task": "dmc:walker_walk"}) == []
+    with pytest.raises(ValueError, match="--task walker_walk"):
+        check_offline_settings(tmp_path, {**began, "task": "dmc:walker_run"})

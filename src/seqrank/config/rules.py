@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from seqrank.choices import Backbone, SegmentOrder, Selection
 from seqrank.config.train_config import TrainConfig
-from seqrank.envs import canonical_task
+from seqrank.envs import canonical_task, same_task
 from seqrank.errors import SettingError, setting
 from seqrank.feedback.teachers import parse_teacher
 
@@ -337,5 +337,5 @@ def check_recorded(config: TrainConfig, recorded: Recorded, given: Collection[st
 
 def _same(name: str, value: Any, recorded: Any) -> bool:
     if name == "task":
-        return bool(canonical_task(value) == canonical_task(recorded))
+        return same_task(value, recorded)
     return bool(value == recorded)

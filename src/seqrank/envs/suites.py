@@ -47,6 +47,15 @@ BLOCK_TASKS = ("place",)
 SUITES = ("dmc", "metaworld", "block", "gym")
 
 
+def same_task(first: str, second: str) -> bool:
+    """Whether two names are one task (`walker_walk` and `dmc:walker_walk`, `window-open`
+    and `metaworld:window-open-v3`); names that are no task are the same only as written."""
+    try:
+        return canonical_task(first) == canonical_task(second)
+    except SettingError:
+        return first == second
+
+
 def canonical_task(name: str) -> tuple[str, str]:
     """("dmc", "walker_walk"), ("metaworld", "door-open-v3"), ("block", "place"),
     ("gym", "Hopper-v5") or ("custom", "my_pkg.envs:make") (a user's factory)."""

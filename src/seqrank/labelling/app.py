@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from seqrank.config import TrainConfig
-from seqrank.envs import canonical_task, make_env
+from seqrank.envs import canonical_task, make_env, same_task
 from seqrank.envs.recorder import EpisodeRecorder
 from seqrank.episodes import EpisodeStore
 from seqrank.feedback.checking import Recheck, contradicts_itself
@@ -151,6 +151,8 @@ def record_task(db: LabelDB, task: str, obs_dim: int, act_dim: int, segment_leng
     values["segment_length"] = segment_length
     for key, value in values.items():
         stored = db.get_meta(key)
+        if key == "task" and stored is not None and same_task(json.loads(stored), task):
+            continue  # (the name it began with is kept: walker_walk is dmc:walker_walk)
         if stored is not None and json.loads(stored) != value:
             raise ValueError(
                 f"{db.path} holds labels for {key} {json.loads(stored)!r}, not {value!r}"

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.dirs import DirLock, check_folder, missing_folders, remove_made
+from seqrank.envs import same_task
 from seqrank.labelling.db import DB_NAME, LabelDB
 from seqrank.labelling.gold import GoldPairs, check_gold
 
@@ -53,7 +54,7 @@ def check_offline_settings(
         differences = [
             f"--{name.replace('_', '-')} {saved[name]} (not {settings.get(name)})"
             for name in sorted(saved)
-            if name not in CONTINUABLE and saved[name] != settings.get(name)
+            if name not in CONTINUABLE and not _same(name, saved[name], settings.get(name))
         ]
         if differences:
             raise ValueError(
@@ -77,7 +78,7 @@ def _check_labelled(db: LabelDB, directory: Path, settings: dict[str, Any]) -> N
     directory `label online` or a former version labelled in keeps no settings)."""
     task, length = (db.get_meta(name) for name in ("task", "segment_length"))
     where = f"labelling directory {directory} holds labels"
-    if task is not None and json.loads(task) != settings.get("task"):
+    if task is not None and not same_task(json.loads(task), str(settings.get("task"))):
         raise ValueError(
             f"{where} of task {json.loads(task)}, not {settings.get('task')}: choose another --out"
         )
@@ -86,6 +87,12 @@ def _check_labelled(db: LabelDB, directory: Path, settings: dict[str, Any]) -> N
             f"{where} of {json.loads(length)}-step segments, not {settings.get('segment_length')}: "
             f"give --segment-length {json.loads(length)} to continue it, or choose another --out"
         )
+
+
+def _same(name: str, saved: Any, given: Any) -> bool:
+    if name == "task" and isinstance(saved, str) and isinstance(given, str):
+        return same_task(saved, given)  # (walker_walk is dmc:walker_walk)
+    return bool(saved == given)
 
 
 def _shown(value: Any) -> str:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from seqrank.envs import same_task
 from seqrank.episodes import Segments
 from seqrank.feedback.label_file import LabelFile, read_label_file
 from seqrank.labelling.crowd_keys import GOLD_RUN
@@ -50,7 +51,7 @@ def read_gold(path: Path, task: str, segment_length: int) -> GoldPairs:
         raise ValueError(f"{where} does not exist")
     labels = read_label_file(path)
     header = labels.header
-    if header.get("task") != task:
+    if not same_task(str(header.get("task")), task):
         raise ValueError(f"{where} is of task {header.get('task')!r}; this run's is {task!r}")
     known = _known_orders(labels, where)
     names = list(dict.fromkeys(name for pair in known for name in pair))
