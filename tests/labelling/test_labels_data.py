@@ -390,3 +390,20 @@ def test_a_study_names_its_bad_settings_before_a_busy_port(
         assert main(["label", "study", "--participant", "p", "--port", port, *args]) == 2
     assert message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_label_file_whose_segments_keep_no_states_or_context_imports(label_file, tmp_path):
+    """`states` and `context` are optional in a label file (a file written by hand, or by
+    another tool): reading the file accepts it, and so does importing it."""
+    bare = tmp_path / "bare.jsonl"
+    lines = [json.loads(line) for line in label_file.read_text().splitlines()]
+    for line in lines:
+        if line["type"] == "segment":
+            line.pop("states", None)
+            line.pop("context", None)
+    bare.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    labels = read_label_file(bare)
+    segments = labels.session_segments(list(labels.segments))
+    assert segments.states == [None] * len(labels.segments)
+    assert segments.contexts == [None] * len(labels.segments)
+    assert import_file(LabelDB.in_dir(tmp_path / "copy"), bare) == 8

@@ -52,13 +52,13 @@ class LabelFile:
         return list(dict.fromkeys((a["run"], a["session"]) for a in self.answers))
 
     def session_segments(self, names: list[str]) -> Segments:
-        rows = [self.segments[n] for n in names]
-        states = [None if r["states"] is None else np.asarray(r["states"]) for r in rows]
+        rows = [self.segments[n] for n in names]  # (states and context are optional)
+        states = [None if r.get("states") is None else np.asarray(r["states"]) for r in rows]
         return Segments(
             np.asarray([r["features"] for r in rows], np.float32),
             np.asarray([r["rewards"] for r in rows], np.float64),
             states,
-            [r["context"] for r in rows],
+            [r.get("context") for r in rows],
         )
 
 
