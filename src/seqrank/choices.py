@@ -48,7 +48,8 @@ class CrowdWeighting(StrEnum):
     NONE = "none"  # every answer as given
     DROP = "drop"  # a flagged annotator's labels left out (results/crowd/, issue 49)
     # as drop, and each question of a member flagged before a session asked again of one
-    # who is not (`CrowdSource`, `SessionRequest.distrusted`; issue 49, item 3)
+    # who is not, in place of the overlap's opinions on it (`feedback.overlap.reasked`,
+    # `SessionRequest.distrusted`; issue 49, item 3)
     REASK = "reask"
     # a flagged annotator's labels trained as the probability that they are right (left out
     # when their estimate is 1/2 or less); everybody else's as given

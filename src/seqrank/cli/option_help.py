@@ -56,9 +56,10 @@ MEANINGS = {
     "(one answer checks several of theirs), where there is one; 0: on the asked pair",
     "crowd_weighting": "reliability (each crowd label is the probability that its annotator "
     "is right), drop (a flagged annotator's labels left out), reask (as drop, and each "
-    "question of an annotator flagged before a session asked again of one who is not: "
-    "person-time, not questions), soften (a flagged annotator's labels each the "
-    "probability that it is right, left out at 1/2 or less) or none (answers as given)",
+    "question of an annotator flagged before a session asked again of one who is not, in "
+    "place of the overlap's opinions on it: person-time, not questions), soften (a flagged "
+    "annotator's labels each the probability that it is right, left out at 1/2 or less) or "
+    "none (answers as given)",
     "annotators": "label online: a team at the page, comma-separated names (each gets an "
     "address of their own; ASCII letters, digits, '-', '_' and '.', starting with a letter, "
     "'operator' reserved)",

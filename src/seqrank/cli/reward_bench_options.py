@@ -65,7 +65,8 @@ def add_grid_axes(grid: argparse.ArgumentParser) -> None:
         default=["none"],
         help="a crowd teacher's labels: reliability (each the probability that its member "
         "is right), drop (a flagged member's labels left out), reask (as drop, and a "
-        "flagged member's questions asked again of someone else), none (as answered), "
+        "flagged member's questions asked again of someone else in place of the overlap's "
+        "opinions), none (as answered), "
         "comma-separated (none)",
     )
 

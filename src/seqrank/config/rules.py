@@ -71,8 +71,8 @@ def check_segment_order(config: TrainConfig) -> None:
     if config.selection is not Selection.UNIFORM:
         raise SettingError(
             f"{order} gives the scheme its segments as they come; {setting('selection')} "
-            f"{config.selection} picks among them by the model: use one of the two "
-            f"({setting('selection')} uniform with {order})"
+            f"{config.selection} picks among them by the model: keep {setting('selection')} "
+            f"uniform with it, or leave {setting('segment_order')} out"
         )
 
 
