@@ -13,7 +13,7 @@ from seqrank.episodes import Segments
 from seqrank.feedback.closure_checks import chain_inferences
 from seqrank.feedback.crowd import CrowdSource
 from seqrank.feedback.labels import LabelStore
-from seqrank.feedback.overlap import checkers, needs_second_opinion
+from seqrank.feedback.overlap import CHECKERS, checkers, opinions_wanted, reasks_wanted
 from seqrank.feedback.reliability import Reliability
 from seqrank.feedback.schemes import segments_needed, uniform_choice
 from seqrank.feedback.session import SessionRequest, store_session
@@ -71,11 +71,17 @@ def test_overlap_until_zero_asks_as_a_fixed_overlap_did():
     assert fixed.crowd_answers == zero.crowd_answers
 
 
-def test_a_second_opinion_is_asked_while_the_owner_lacks_evidence_or_by_the_draw():
-    assert needs_second_opinion({"a": 3}, "a", until=4, overlap=0.0, draw=0.99)
-    assert not needs_second_opinion({"a": 4}, "a", until=4, overlap=0.1, draw=0.5)
-    assert needs_second_opinion({"a": 4}, "a", until=4, overlap=0.1, draw=0.05)
-    assert needs_second_opinion({}, "new", until=1, overlap=0.0, draw=0.5)
+def test_others_are_asked_while_the_owner_lacks_evidence_or_by_the_draw():
+    assert opinions_wanted(3, until=4, overlap=0.0, draw=0.99) == CHECKERS
+    assert opinions_wanted(4, until=4, overlap=0.1, draw=0.5) == 0
+    assert opinions_wanted(4, until=4, overlap=0.1, draw=0.05) == 1
+    assert opinions_wanted(0, until=1, overlap=0.0, draw=0.5) == CHECKERS
+
+
+def test_a_flagged_members_answer_is_reasked_as_often_as_the_overlap_asks_at_least_once():
+    assert reasks_wanted(3, until=4, overlap=0.0, draw=0.99) == CHECKERS
+    assert reasks_wanted(4, until=4, overlap=0.1, draw=0.05) == 1
+    assert reasks_wanted(4, until=4, overlap=0.1, draw=0.5) == 1  # (the overlap asks none)
 
 
 def test_the_checkers_are_the_other_people_with_the_fewest_shared_answers():

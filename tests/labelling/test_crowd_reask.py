@@ -17,8 +17,8 @@ def _choice(question) -> str:
     return ("left", "right", "skip")[(question.left * 7 + question.right) % 3]
 
 
-def _session(tmp_path, distrusted: frozenset[str]):
-    hub = bare_team(tmp_path, TEAM, 60.0, overlap=0.0, overlap_until=0)
+def _session(tmp_path, distrusted: frozenset[str], until: int = 0):
+    hub = bare_team(tmp_path, TEAM, 60.0, overlap=0.0, overlap_until=until)
     done = Event()
     people = [answering(hub, name, _choice, done) for name in TEAM]
     request = replace(team_request("sequential", 12, 3, spare=2), distrusted=distrusted)
@@ -66,3 +66,24 @@ def test_a_stored_reask_index_is_never_an_overlap_opinions():
     from seqrank.labelling.crowd_keys import REASK_NTH
 
     assert REASK_NTH >= CHECKERS
+
+
+def test_while_evidence_is_short_a_flagged_answer_is_reasked_of_both_others(tmp_path):
+    """As the simulated crowd (`reasks_wanted`): as many re-asks as the overlap would ask
+    (two while the author's shared answers are short), in place of its opinions."""
+    hub, record = _session(tmp_path, frozenset({"carol"}), until=1000)
+    crowd = record.crowd
+    carols = [a for a, who in zip(record.answers, crowd.answered_by, strict=True) if who == "carol"]
+    reasks = [o for o in crowd.second_opinions if o.reask]
+    assert carols and len(reasks) == 2 * len(carols)
+    for answer in carols:
+        on_it = [
+            o
+            for o in reasks
+            if (o.answered.first, o.answered.second) == (answer.first, answer.second)
+        ]
+        assert sorted(o.annotator for o in on_it) == ["ann", "bob"]
+    theirs = {(a.first, a.second) for a in carols}
+    others = [o for o in crowd.second_opinions if not o.reask]
+    assert others and all((o.answered.first, o.answered.second) not in theirs for o in others)
+    hub.db.close()

@@ -9,8 +9,9 @@ The choices this module makes (issue 37; docs/guides/team.md):
   answers measure agreement and train the model as asked pairs, but never enter a closure;
 - a crowd of one asks exactly what a single teacher asks (same pool, same draws);
 - under `crowd_weighting` reask, each question of a member flagged before the session
-  (`SessionRequest.distrusted`) is asked again of one who is not (the fewest shared
-  answers first, as `overlap.checkers` picks) in place of the overlap's opinions on it
+  (`SessionRequest.distrusted`) is asked again of as many who are not as the overlap
+  would ask, at least one (the fewest shared answers first, as `overlap.checkers` picks),
+  in place of the overlap's opinions on it
   (`overlap.reasked`, the page's rule too): an asked pair of the re-asker's, evidence like
   any second opinion, and never in a closure (a flagged member's chain is what the closure
   drew from).
@@ -30,7 +31,7 @@ import numpy as np
 from seqrank.episodes import Segments
 from seqrank.feedback.closure_checks import chain_inferences, pair_to_check
 from seqrank.feedback.crowd_record import CrowdRecord, SecondOpinion
-from seqrank.feedback.overlap import adaptive_picks, checkers, reasked
+from seqrank.feedback.overlap import adaptive_picks, checkers, reasked, reasks_wanted
 from seqrank.feedback.schemes import (
     Ask,
     SessionRecord,
@@ -276,20 +277,23 @@ class CrowdSource:
         rng: np.random.Generator,
         asker: Callable[[int, np.random.Generator], Ask],
     ) -> list[SecondOpinion]:
-        """Each question of an `exempt` (re-asked) member asked again of one who is not,
-        skipped questions too: the flagged member's skip is no answer either."""
+        """Each question of an `exempt` (re-asked) member asked again of as many who are
+        not as the overlap would ask (`reasks_wanted`), skipped questions too: the flagged
+        member's skip is no answer either."""
         assert record.crowd is not None
         names = [m.name for m in self.members]
         trusted = [name for name in names if name not in exempt]
-        reasks = []
+        until, overlap, reasks = self.overlap_until, self.overlap, []
         for asked, owner in zip(record.answers, record.crowd.answered_by, strict=True):
             if owner not in exempt:
                 continue
-            person = checkers(self.shared, owner, trusted, rng)[0]
-            for name in (owner, person):
+            wanted = reasks_wanted(self.shared.get(owner, 0), until, overlap, rng.random())
+            people = checkers(self.shared, owner, trusted, rng, min(wanted, len(trusted)))
+            for name in (owner, *people):
                 self.shared[name] = self.shared.get(name, 0) + 1
-            answer = asker(names.index(person), rng)(asked.first, asked.second)
-            reasks.append(SecondOpinion(replace(asked, answer=answer), person, reask=True))
+            for person in people:
+                answer = asker(names.index(person), rng)(asked.first, asked.second)
+                reasks.append(SecondOpinion(replace(asked, answer=answer), person, reask=True))
         return reasks
 
     def _picks(

@@ -13,10 +13,11 @@ asked again of one other person. Overlaps cost person-time, never questions: a s
 opinion is not a question of the budget.
 
 Under `crowd_weighting` reask, an answer of a member flagged before the session gets no
-such opinion: it is asked again, once, of somebody not flagged (`reasked`), whose answer
-trains in its place; the simulated crowd and the page follow this one rule.
+such opinion: it is asked again of as many members not flagged as the overlap would ask
+about it, at least one (`reasked`, `reasks_wanted`), whose answers train in its place; the
+simulated crowd and the page follow this one rule.
 
-`needs_second_opinion` and `checker` are what a page that asks people one answer at a time
+`opinions_wanted` and `checkers` are what a page that asks people one answer at a time
 calls; `adaptive_picks` is the simulated crowd's session at once.
 """
 
@@ -41,12 +42,19 @@ def reasked(author: str, distrusted: Collection[str], people: Sequence[str]) -> 
     return author in distrusted and any(name not in distrusted for name in people)
 
 
-def needs_second_opinion(
-    shared: Mapping[str, int], owner: str, until: int, overlap: float, draw: float
-) -> bool:
-    """Whether `owner`'s answer is asked again: always while their shared answers number
-    fewer than `until`, else when `draw` (uniform in [0, 1)) falls below `overlap`."""
-    return shared.get(owner, 0) < until or draw < overlap
+def opinions_wanted(shared: int, until: int, overlap: float, draw: float) -> int:
+    """How many others are asked about an answer whose author has `shared` answers shared
+    with others (before the cap of who there is to ask): `CHECKERS` while fewer than
+    `until`, else one when `draw` (uniform in [0, 1)) falls below `overlap`, else none."""
+    if shared < until:
+        return CHECKERS
+    return 1 if draw < overlap else 0
+
+
+def reasks_wanted(shared: int, until: int, overlap: float, draw: float) -> int:
+    """How many members not flagged are asked a flagged member's answer under reask: as
+    many as the overlap would ask about it, at least one."""
+    return max(1, opinions_wanted(shared, until, overlap, draw))
 
 
 def checkers(
@@ -82,14 +90,10 @@ def adaptive_picks(
     picks = []
     for k, asked in enumerate(record.answers):
         owner, draw = record.crowd.answered_by[k], rng.random()
-        short = shared.get(owner, 0) < until
-        if (
-            asked.answer is Answer.SKIP
-            or owner in exempt
-            or not needs_second_opinion(shared, owner, until, overlap, draw)
-        ):
+        wanted = opinions_wanted(shared.get(owner, 0), until, overlap, draw)
+        if asked.answer is Answer.SKIP or owner in exempt or not wanted:
             continue
-        others = checkers(shared, owner, people, rng, CHECKERS if short else 1)
+        others = checkers(shared, owner, people, rng, wanted)
         for name in [owner, *others]:
             shared[name] = shared.get(name, 0) + 1
         picks += [(k, name) for name in others]

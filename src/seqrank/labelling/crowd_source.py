@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import suppress
 from dataclasses import dataclass, field, replace
@@ -32,7 +33,7 @@ from itertools import count
 from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
 from seqrank.feedback.crowd_record import GoldAnswer, SecondOpinion
-from seqrank.feedback.overlap import CHECKERS, needs_second_opinion, reasked
+from seqrank.feedback.overlap import opinions_wanted, reasked, reasks_wanted
 from seqrank.feedback.schemes import Ask, SessionRecord, scheme_has_defender, segments_needed
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.crowd_db import ChainRow
@@ -216,16 +217,31 @@ class _CrowdSession:
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
     ) -> None:
         if reasked(author, self.request.distrusted, self.team.annotators):
-            self._reask(key, first, second)
+            self._reask(key, first, second, author)
         else:
             self._overlap(key, first, second, answer, author)
 
-    def _reask(self, key: ChainStep, first: int, second: int) -> None:
+    def _wanted(
+        self, key: ChainStep, author: str, rule: Callable[..., int] = opinions_wanted
+    ) -> int:
+        """How many others `rule` asks about `author`'s answer (uncapped): the overlap's
+        `opinions_wanted`, or reask's `reasks_wanted`."""
+        team = self.team
+        draw = stream(self.seed, Stream.SECOND_OPINION, key.index).random()
+        shared = self.tables.shared_answers(self.run, author)
+        return rule(shared, team.overlap_until, team.overlap, draw)
+
+    def _reask(self, key: ChainStep, first: int, second: int, author: str) -> None:
         """Under `crowd_weighting` reask, a flagged member's question (a skip too) asked
-        again of anybody not flagged, whose answer trains in place of theirs."""
-        question = self._store_question(SecondOpinionOf(key, REASK_NTH), first, second)
-        excluded = ",".join(sorted(self.request.distrusted))
-        self.tables.pose(question, SECOND_OPINIONS, None, excluded=excluded)
+        again of as many not flagged as the overlap would ask, at least one
+        (`reasks_wanted`); their answers train in place of theirs."""
+        distrusted = self.request.distrusted
+        trusted = [name for name in self.team.annotators if name not in distrusted]
+        wanted = self._wanted(key, author, reasks_wanted)
+        excluded = ",".join(sorted(distrusted))
+        for nth in range(REASK_NTH, REASK_NTH + min(wanted, len(trusted))):
+            question = self._store_question(SecondOpinionOf(key, nth), first, second)
+            self.tables.pose(question, SECOND_OPINIONS, None, excluded=excluded)
 
     def _overlap(
         self, key: ChainStep, first: int, second: int, answer: Answer, author: str
@@ -235,15 +251,9 @@ class _CrowdSession:
         `overlap`. Replayed with the same settings, it poses nothing it did not pose
         before: a shared count never decreases, so a later decision never asks for more
         (and posing a posed question again changes nothing)."""
-        team = self.team
-        if answer is Answer.SKIP or len(team.annotators) < 2:
+        if answer is Answer.SKIP or len(self.team.annotators) < 2:
             return
-        draw = stream(self.seed, Stream.SECOND_OPINION, key.index).random()
-        shared = {author: self.tables.shared_answers(self.run, author)}
-        wanted = 0
-        if needs_second_opinion(shared, author, team.overlap_until, team.overlap, draw):
-            short = shared[author] < team.overlap_until
-            wanted = min(CHECKERS if short else 1, len(team.annotators) - 1)
+        wanted = min(self._wanted(key, author), len(self.team.annotators) - 1)
         for nth in range(wanted):
             question = self._store_question(SecondOpinionOf(key, nth), first, second)
             self.tables.pose(question, SECOND_OPINIONS, None, excluded=author)
@@ -301,7 +311,7 @@ class _CrowdSession:
             assert isinstance(key, SecondOpinionOf)
             first, second = pool_of[question.first], pool_of[question.second]
             q = Question(key.asked.index, first, second, self.defender)
-            reask = key.nth == REASK_NTH
+            reask = key.nth >= REASK_NTH
             opinions.append(SecondOpinion(AnsweredQuestion(q, Answer(answer)), who, reask=reask))
         return opinions
 
