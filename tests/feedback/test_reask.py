@@ -199,3 +199,17 @@ def test_a_run_tells_each_session_who_is_distrusted(monkeypatch):
     assert run._request(Counters(sessions=1), first=False).distrusted == {"a"}
     labels.weighting = "drop"
     assert run._request(Counters(sessions=1), first=False) == plain
+
+
+def test_a_runs_feedback_row_counts_its_reasks():
+    """`metrics.jsonl`'s feedback row of a crowd session says how many of its second
+    opinions asked a flagged member's question again, as the benchmark's rows do."""
+    from seqrank.training.metrics import crowd_fields
+
+    _, asked = run_sessions(WRONG, "reask", sessions=2)
+    first, second = (record.crowd for _, record in asked)
+    assert first is not None and second is not None
+    assert crowd_fields(first, {})["reasks"] == 0  # nobody flagged yet
+    row = crowd_fields(second, {})
+    assert row["reasks"] == sum(o.reask for o in second.second_opinions) > 0
+    assert row["second_opinions"] == len(second.second_opinions) >= row["reasks"]

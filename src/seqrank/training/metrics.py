@@ -68,11 +68,13 @@ def feedback_row(
 
 def crowd_fields(crowd: CrowdRecord, reliability: dict[str, Reliability]) -> dict[str, Any]:
     """A crowd's session: its length with its people side by side, their time added up,
-    the second opinions, and each annotator's reliability so far (`crowd/NAME/...`)."""
+    the second opinions (`reasks`: those asking a flagged member's question again), and
+    each annotator's reliability so far (`crowd/NAME/...`)."""
     fields: dict[str, Any] = {
         "crowd_seconds": crowd.seconds,
         "crowd_person_seconds": crowd.person_seconds,
         "second_opinions": len(crowd.second_opinions),
+        "reasks": sum(o.reask for o in crowd.second_opinions),
     }
     for name, r in reliability.items():
         fields.update({
