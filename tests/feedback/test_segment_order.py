@@ -34,8 +34,8 @@ def when(features: np.ndarray) -> list[float]:
     return [round(float(f[0, 0]), 3) for f in features]
 
 
-def request(order: str, scheme: str = "root", seed: int = 4):
-    plan = SessionPlan(scheme, "uniform", 1, LENGTH, order=order)
+def request(order: str, scheme: str = "root", seed: int = 4, crowd: int = 0):
+    plan = SessionPlan(scheme, "uniform", 1, LENGTH, crowd=crowd, order=order)
     model = RewardModel(1, 3, 8, 1, 1e-3, torch.device("cpu"))
     rng = np.random.default_rng(seed)
     return prepare_session(plan, 12, store(), model, 0, rng, False, 1.0)
@@ -62,3 +62,28 @@ def test_a_run_records_and_resolves_the_order():
     assert config.as_dict()["segment_order"] == "collection"
     assert session_plan(config).order == "collection"
     assert session_plan(seqrank.make_config("walker_walk")).order == "uniform"
+
+
+def test_a_team_in_collection_order_has_each_member_span_the_session():
+    """Contiguous slices of a pool in collection order would give the first member the
+    oldest segments and the last the newest, every session: dealt, each spans it."""
+    from seqrank.feedback.crowd import share_session
+
+    sliced, reserve = share_session("root", 30, 40, 3)
+    dealt, same_reserve = share_session("root", 30, 40, 3, dealt=True)
+    assert reserve == same_reserve
+    assert [len(c.pool_ids) for c in dealt] == [len(c.pool_ids) for c in sliced]
+    assert sorted(i for c in dealt for i in c.pool_ids) == sorted(
+        i for c in sliced for i in c.pool_ids
+    )
+    for chain in dealt:
+        assert list(chain.pool_ids) == sorted(chain.pool_ids)
+        usable = sum(len(c.pool_ids) for c in dealt)
+        assert chain.pool_ids[0] < 3 and chain.pool_ids[-1] > 0.75 * usable  # early to late
+    team = make_source("crowd:oracle+oracle+oracle")
+    _, record = team.ask_session(request("collection", crowd=3))
+    assert record.crowd is not None
+    places = {}
+    for answer, who in zip(record.answers, record.crowd.answered_by, strict=True):
+        places.setdefault(who, []).extend([answer.first, answer.second])
+    assert all(min(p) < 3 for p in places.values())  # every member meets early segments

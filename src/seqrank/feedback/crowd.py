@@ -37,6 +37,7 @@ from seqrank.feedback.schemes import (
     SessionRecord,
     get_scheme,
     handover_reserve,
+    in_order_choice,
     segments_needed,
 )
 from seqrank.feedback.session import SessionRequest
@@ -53,11 +54,13 @@ class Chain:
 
 
 def share_session(
-    scheme: str, questions: int, pool_size: int, people: int
+    scheme: str, questions: int, pool_size: int, people: int, dealt: bool = False
 ) -> tuple[list[Chain], tuple[int, ...]]:
     """The session's chains and its hand-over reserve: questions split evenly (the first
     chains take the remainder; no chain for a person beyond the questions), the pool cut
-    into contiguous slices in proportion to what each chain needs, its last
+    into contiguous slices in proportion to what each chain needs, or with `dealt` dealt
+    out in turn (a pool in collection order: every chain then spans it, early to late,
+    where slices would give the first person the oldest segments), its last
     `handover_reserve` segments kept aside. ValueError when the pool is too small."""
     if people < 1:
         raise ValueError(f"a session needs at least one person to answer, got {people}")
@@ -74,11 +77,25 @@ def share_session(
     scale = usable // sum(needs)
     sizes = [need * scale for need in needs]
     sizes[-1] += usable - sum(sizes)
-    starts = np.cumsum([0, *sizes])
-    shares = [
-        Chain(tuple(range(int(starts[k]), int(starts[k + 1]))), budgets[k]) for k in range(chains)
-    ]
+    if dealt:
+        ids = _dealt(sizes)
+    else:
+        starts = np.cumsum([0, *sizes])
+        ids = [tuple(range(int(starts[k]), int(starts[k + 1]))) for k in range(chains)]
+    shares = [Chain(ids[k], budgets[k]) for k in range(chains)]
     return shares, tuple(range(usable, pool_size))
+
+
+def _dealt(sizes: list[int]) -> list[tuple[int, ...]]:
+    """Pool ids 0, 1, ... dealt to chains in turn, each until it holds its size."""
+    held: list[list[int]] = [[] for _ in sizes]
+    turn, position = 0, 0
+    while position < sum(sizes):
+        if len(held[turn]) < sizes[turn]:
+            held[turn].append(position)
+            position += 1
+        turn = (turn + 1) % len(sizes)
+    return [tuple(chain) for chain in held]
 
 
 def run_chain(
@@ -220,7 +237,10 @@ class CrowdSource:
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         rewards = request.segments.rewards
         teachers = [ScriptedTeacher(m.teacher).with_margin(request.margin) for m in self.members]
-        chains, _ = share_session(request.scheme, request.questions, len(rewards), len(teachers))
+        in_order = request.chooser is in_order_choice  # (collection order: deal the pool)
+        chains, _ = share_session(
+            request.scheme, request.questions, len(rewards), len(teachers), in_order
+        )
         rngs = chain_rngs(request, len(chains))
         answers = dict.fromkeys((m.name for m in self.members), 0)
 

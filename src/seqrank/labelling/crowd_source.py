@@ -34,7 +34,13 @@ from seqrank.episodes import Segments
 from seqrank.feedback.crowd import Chain, merge_chains, run_chain, share_session, with_opinions
 from seqrank.feedback.crowd_record import GoldAnswer, SecondOpinion
 from seqrank.feedback.overlap import opinions_wanted, reasked, reasks_wanted
-from seqrank.feedback.schemes import Ask, SessionRecord, scheme_has_defender, segments_needed
+from seqrank.feedback.schemes import (
+    Ask,
+    SessionRecord,
+    in_order_choice,
+    scheme_has_defender,
+    segments_needed,
+)
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.crowd_db import ChainRow
 from seqrank.labelling.crowd_handover import continuation
@@ -140,7 +146,8 @@ class _CrowdSession:
         scheme, questions = self.request.scheme, self.stored.questions
         while people > 1 and segments_needed(scheme, questions, people) > self.pool_size:
             people -= 1
-        return share_session(scheme, questions, self.pool_size, people)[0]
+        in_order = self.request.chooser is in_order_choice  # (collection order: deal it)
+        return share_session(scheme, questions, self.pool_size, people, in_order)[0]
 
     def run_chain(self, chain: ChainRow | None) -> list[tuple[SessionRecord, str]]:
         """The chain and whatever continues it after hand-overs: (record, its author)."""
