@@ -209,3 +209,21 @@ def _labels(tmp_path):
     path = tmp_path / "labels.jsonl"
     path.write_text("".join(json.dumps(line) + "\n" for line in lines))
     return path
+
+
+def test_a_grid_takes_a_segment_length_up_to_the_pools_longest_episode(tmp_path, capsys):
+    """`--segment-length` (LiRE's offline setting asks 25): recorded with the grid, and one
+    longer than every episode of the pool refused in one line, nothing written."""
+    pool = tmp_path / "three.npz"
+    _write_pool(pool, 3, length=30)
+    out = tmp_path / "grid"
+    argv = ["reward-bench", "run", "--pool", str(pool), *GRID, "--out", str(out)]
+    assert main([*argv, "--segment-length", "31"]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and not out.exists()
+    assert "--segment-length 31 is longer than every episode of pool" in error
+    assert "accepted: 1 to 30" in error
+    assert main([*argv, "--segment-length", "25"]) == 0
+    assert json.loads((out / "settings.json").read_text())["segment_length"] == 25
+    assert main([*argv, "--segment-length", "20"]) == 2  # another grid's folder
+    assert "segment_length differ" in capsys.readouterr().err

@@ -253,6 +253,17 @@ def _check_scripted(teachers: list[str]) -> None:
             parse_scripted_teacher(teacher)
 
 
+def _check_segment_length(pool: Any, path: Any, length: int) -> None:
+    """A segment no episode of the pool is long enough to hold is refused (a shorter
+    episode gives its whole self, padded, as in training)."""
+    longest = int(pool.length.max())
+    if length > longest:
+        raise ValueError(
+            f"--segment-length {length} is longer than every episode of pool {path} (the "
+            f"longest has {longest} steps); accepted: 1 to {longest}"
+        )
+
+
 def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     """The input (pools, folder, teachers, settings; under --window-steps, each pool's
     windows) is checked before anything is written or run; a cell that fails afterwards
@@ -263,13 +274,14 @@ def run_grid(args: argparse.Namespace, out: Console, err: Console) -> int:
     from seqrank.rewardbench.pool import load_pool
 
     try:
-        for path in args.pool:
-            load_pool(path)  # each pool checked before anything is made
+        for path in args.pool:  # each pool checked before anything is made
+            _check_segment_length(load_pool(path), path, args.segment_length)
         check_folder(args.out, "--out")
         _check_scripted(args.teachers)
         settings = BenchSettings(
             tuple(args.budgets),
             args.session_questions,
+            segment_length=args.segment_length,
             heldout_segments=args.heldout_segments,
             net=RewardNet(epochs=args.reward_epochs),
             window_steps=args.window_steps,

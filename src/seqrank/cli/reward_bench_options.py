@@ -104,6 +104,13 @@ def add_grid_sizes(grid: argparse.ArgumentParser) -> None:
         "--session-questions", type=positive, default=25, help="questions per session (25)"
     )
     grid.add_argument(
+        "--segment-length",
+        type=int_between(1, 100_000),
+        default=50,
+        help="steps per compared segment, at most a pool's longest episode (50; LiRE's "
+        "offline setting: 25)",
+    )
+    grid.add_argument(
         "--heldout-segments",
         type=int_between(10, 10**6),
         default=300,
