@@ -248,6 +248,8 @@ CASES = [
     # label: the page's options, the offline settings, online and study settings
     ([*OFFLINE, "--port", "70000"], "70000 is out of range; accepted: 0 to 65535"),
     ([*OFFLINE, "--countdown", "nan"], "--countdown nan: must be 0 (none) or more seconds"),
+    ([*OFFLINE, "--allow-host", "bad host"], "'bad host' is not a host name or address: give"),
+    ([*OFFLINE, "--allow-host", "labels.example.org:80"], "is not a host name or address"),
     ([*OFFLINE, "--size", "2000"], "2000 is out of range; accepted: 16 to 480"),
     ([*OFFLINE, "--fps", "0"], "argument --fps: 0 is out of range; accepted: 1 to 120"),
     ([*OFFLINE, "--seed", "-1"], "argument --seed: -1 is out of range; accepted: 0 to 4294967295"),

@@ -17,6 +17,25 @@ PLAYBACKS = ("side-by-side", "one-after-another")
 MAX_COUNTDOWN = 3600.0  # seconds per question
 
 
+def allowed_host(text: str) -> str:
+    """A name or address a browser can send as the Host header: letters, digits, '-' and
+    '.' (an IPv6 address in brackets or bare), no port."""
+    import ipaddress
+    import re
+
+    name = text.strip().removeprefix("[").removesuffix("]")
+    try:
+        return str(ipaddress.ip_address(name))
+    except ValueError:
+        pass
+    if re.fullmatch(r"(?=.{1,253}$)([A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?\.?)+", name):
+        return name.rstrip(".").lower()
+    raise argparse.ArgumentTypeError(
+        f"{text!r} is not a host name or address: give a name of letters, digits, '-' and "
+        "'.' (e.g. labels.example.org) or an IP address, without a port"
+    )
+
+
 def server_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group(SERVER_HELP)
     group.add_argument(
@@ -31,6 +50,7 @@ def server_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--allow-host",
         action="append",
+        type=allowed_host,
         default=[],
         metavar="NAME",
         help="another name or address the page is opened by (e.g. a public IP in front of "
