@@ -16,7 +16,10 @@ BAD = [
     ({"scheme": "best"}, "unknown scheme 'best'"),
     ({"teacher": "oracle,eps_mistake=2"}, "eps_mistake"),
     ({"max_feedback": 0}, "max_feedback must be a whole number from 1"),
-    ({"segment_length": 10, "surf_crop": 10}, "surf_crop 10 must be smaller than segment_length"),
+    (
+        {"segment_length": 10, "surf_crop": 10, "reward_learner": "surf"},
+        "surf_crop 10 must be smaller than segment_length",
+    ),
     ({"reward_learner": "magic"}, "reward_learner"),
     ({"query_episodes": 500}, "query_episodes 500 exceeds episodes_kept"),
     ({"reward_batch": 50}, "reward_batch 50 exceeds max_feedback 40"),

@@ -324,7 +324,7 @@ def _online(args: argparse.Namespace, say: Any, err: Console) -> int:
     if started is None:  # --dry-run
         gold = holder.get("gold")
         if gold is not None:
-            err.print(f"gold: {len(gold.pairs)} pairs from {gold.source}")
+            err.print(f"gold: {len(gold.pairs)} pairs from {gold.source}", soft_wrap=True)
         return 0
     try:
         if started.finished:

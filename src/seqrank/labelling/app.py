@@ -83,7 +83,10 @@ class PageServer:
         token = hub.settings.token
         access = Access.serving(options.host, port, token, options.allowed_hosts, hub.mode.tokens())
         app = create_app(hub, access)
-        config = uvicorn.Config(app, log_level="warning", lifespan="off")
+        # log_config None: the page's server leaves the process's logging as it found it
+        # (uvicorn's own config replaces every handler, closing those of other libraries,
+        # dm_control's absl handler among them, and whatever stream they hold)
+        config = uvicorn.Config(app, log_level="warning", lifespan="off", log_config=None)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(
             target=self._server.run, kwargs={"sockets": [self._socket]}, daemon=True
