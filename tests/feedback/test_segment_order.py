@@ -47,6 +47,7 @@ def test_collection_order_gives_the_drawn_segments_as_collected():
     assert collected == sorted(collected) and drawn != sorted(drawn)
     assert sorted(drawn) == collected  # the same segments: the same draws
     assert ordered.chooser is in_order_choice and uniform.chooser is not in_order_choice
+    assert ordered.in_order and not uniform.in_order
 
 
 @pytest.mark.parametrize("scheme", ["pairwise", "sequential", "root", "ranked"])

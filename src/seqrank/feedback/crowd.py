@@ -37,7 +37,6 @@ from seqrank.feedback.schemes import (
     SessionRecord,
     get_scheme,
     handover_reserve,
-    in_order_choice,
     segments_needed,
 )
 from seqrank.feedback.session import SessionRequest
@@ -237,7 +236,7 @@ class CrowdSource:
     def ask_session(self, request: SessionRequest) -> tuple[Segments, SessionRecord]:
         rewards = request.segments.rewards
         teachers = [ScriptedTeacher(m.teacher).with_margin(request.margin) for m in self.members]
-        in_order = request.chooser is in_order_choice  # (collection order: deal the pool)
+        in_order = request.in_order  # (collection order: deal the pool)
         chains, _ = share_session(
             request.scheme, request.questions, len(rewards), len(teachers), in_order
         )

@@ -57,6 +57,9 @@ class SessionRequest:
         distrusted: a crowd's members flagged before the session, under `crowd_weighting`
             reask (`LabelStore.distrusted`): each of their questions is asked again of a
             member who is not; empty otherwise.
+        in_order: the pool is in the order its segments were collected (`segment_order
+            collection`) and is taken as it comes (`chooser` is `in_order_choice`): a crowd
+            deals it to its chains in turn, and a replayed session keeps that choice.
 
     Examples:
         >>> import numpy as np, seqrank
@@ -93,6 +96,11 @@ class SessionRequest:
     chains: int = 1  # asked as this many chains side by side (a crowd: one per person)
     # a crowd's members whose questions are asked again of someone else (reask)
     distrusted: frozenset[str] = frozenset()
+    in_order: bool = False  # collection order, taken as it comes (`chooser`: in_order_choice)
+
+    def __post_init__(self) -> None:
+        if self.in_order and self.chooser is not in_order_choice:
+            raise ValueError("a session in collection order takes its pool as it comes")
 
 
 class FeedbackSource(Protocol):
@@ -251,7 +259,7 @@ def prepare_session(
     recheck = _recheck(plan.recheck, contradicted, model_fit, member_returns, sampled, reward_model)
     return SessionRequest(
         plan.scheme, questions, session, sampled, chooser, rng, margin, recheck=recheck,
-        episodes=window, model_returns=opinions, chains=chains,
+        episodes=window, model_returns=opinions, chains=chains, in_order=in_order,
     )  # fmt: skip
 
 

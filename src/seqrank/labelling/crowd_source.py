@@ -37,7 +37,6 @@ from seqrank.feedback.overlap import opinions_wanted, reasked, reasks_wanted
 from seqrank.feedback.schemes import (
     Ask,
     SessionRecord,
-    in_order_choice,
     scheme_has_defender,
     segments_needed,
 )
@@ -146,7 +145,7 @@ class _CrowdSession:
         scheme, questions = self.request.scheme, self.stored.questions
         while people > 1 and segments_needed(scheme, questions, people) > self.pool_size:
             people -= 1
-        in_order = self.request.chooser is in_order_choice  # (collection order: deal it)
+        in_order = self.request.in_order  # (collection order: deal it)
         return share_session(scheme, questions, self.pool_size, people, in_order)[0]
 
     def run_chain(self, chain: ChainRow | None) -> list[tuple[SessionRecord, str]]:

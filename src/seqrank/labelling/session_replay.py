@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from seqrank.episodes import Segments
-from seqrank.feedback.schemes import Chooser, in_order_choice, uniform_choice
+from seqrank.feedback.schemes import Chooser, uniform_choice
 from seqrank.feedback.session import SessionRequest
 from seqrank.labelling.db import LabelDB
 from seqrank.labelling.streams import one_person_draws, session_seed
@@ -67,7 +67,7 @@ def open_session(db: LabelDB, run: str, run_seed: int, request: SessionRequest) 
     same_pool = np.array_equal(pool.features, request.segments.features)
     # a model's scores index the new draw, not the stored pool; collection order's choice
     # reads positions only, and the stored pool was stored in that order
-    kept = same_pool or request.chooser is in_order_choice
+    kept = same_pool or request.in_order
     chooser = request.chooser if kept else uniform_choice
     recheck = request.recheck
     if recheck is not None:  # the opinions index the stored pool
