@@ -8,7 +8,7 @@ from typing import Any
 
 from rich.console import Console
 
-from seqrank.cli.options import Parser
+from seqrank.cli.options import Parser, int_between
 from seqrank.errors import UsageError
 
 
@@ -25,6 +25,14 @@ def add_parser(commands: Any) -> None:
     export.add_argument(
         "-o", "--output", type=Path, required=True, help="the new JSONL file; not one already there"
     )
+    export.add_argument(
+        "--agreed-by",
+        type=int_between(2, 1000),
+        default=None,
+        metavar="N",
+        help="only the pairs N or more people of a team answered alike, every answer strict "
+        "(a gold file for the team's next run: `label online --gold`); off: every answer",
+    )
     load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
     load.add_argument("file", type=Path, help="a JSONL file from `seqrank labels export`")
     load.add_argument("directory", type=Path, help="the labelling directory to add them to")
@@ -34,7 +42,7 @@ def add_parser(commands: Any) -> None:
 def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     try:
         if args.action == "export":
-            count, source = _export(args.directory, args.output)
+            count, source = _export(args.directory, args.output, args.agreed_by)
             out.print(f"{count} answers of {source} written to {args.output}", highlight=False)
         else:
             count, db_path = _import(args.file, args.directory)
@@ -44,9 +52,9 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
     return 0
 
 
-def _export(directory: Path, output: Path) -> tuple[int, str]:
+def _export(directory: Path, output: Path, agreed_by: int | None) -> tuple[int, str]:
     """A labelling database's answers, or a run's from its checkpoint (scripted and
-    replayed teachers, which have no database)."""
+    replayed teachers, which have no database); `agreed_by`: a team's agreed pairs only."""
     from seqrank.dirs import check_file
     from seqrank.labelling.db import DB_NAME, LabelDB
     from seqrank.labelling.jsonl import export_file
@@ -57,13 +65,34 @@ def _export(directory: Path, output: Path) -> tuple[int, str]:
             f"label file {output} already exists; choose another --output or remove it"
         )
     if (directory / DB_NAME).is_file():
-        return export_file(LabelDB(directory / DB_NAME), output), str(directory / DB_NAME)
+        db = LabelDB(directory / DB_NAME)
+        try:
+            _check_agreed(db, agreed_by)
+            return export_file(db, output, agreed_by), str(directory / DB_NAME)
+        finally:
+            db.close()
+    if agreed_by is not None and (directory / "config.json").is_file():
+        raise ValueError(
+            f"{directory} is a run directory, whose teacher answered each pair once; "
+            "--agreed-by reads a team's labelling directory (labels.sqlite)"
+        )
     if not (directory / "config.json").is_file():
         raise ValueError(
             f"{directory} holds no {DB_NAME} (a labelling directory) nor config.json "
             "(a run directory)"
         )
     return _export_run(directory, output), f"run {directory}"
+
+
+def _check_agreed(db: Any, agreed_by: int | None) -> None:
+    """Refuses an agreed-pairs export that would hold no pair."""
+    from seqrank.labelling.jsonl import agreed_pairs
+
+    if agreed_by is not None and not agreed_pairs(db.answered_questions(), agreed_by):
+        raise ValueError(
+            f"no pair of {db.path} was answered alike by {agreed_by} or more people "
+            "(a team's second opinions make such pairs); nothing written"
+        )
 
 
 def _export_run(directory: Path, output: Path) -> int:

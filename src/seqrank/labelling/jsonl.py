@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from seqrank.feedback.label_file import FORMAT, VERSION, read_label_file
-from seqrank.labelling.db import LabelDB, from_blob
+from seqrank.labelling.db import LabelDB, StoredAnswer, StoredQuestion, from_blob
 
 META_KEYS = ("task", "obs_dim", "act_dim", "segment_length")
 
@@ -19,13 +19,17 @@ def segment_name(run: str, session: int, pool_id: int) -> str:
     return f"{run}/{session}/{pool_id}"
 
 
-def export_lines(db: LabelDB) -> Iterator[str]:
+def export_lines(db: LabelDB, agreed_by: int | None = None) -> Iterator[str]:
+    """The label file's lines: every answer, or with `agreed_by` only the pairs that many
+    people or more answered alike (`agreed_pairs`) and their segments."""
     header: dict[str, Any] = {"type": "header", "format": FORMAT, "version": VERSION}
     for key in META_KEYS:
         value = db.get_meta(key)
         header[key] = None if value is None else json.loads(value)
     yield json.dumps(header)
     answered = db.answered_questions()
+    if agreed_by is not None:
+        answered = agreed_pairs(answered, agreed_by)
     used = sorted({s for q, _ in answered for s in (q.first, q.second)})
     rows = db.segments_by_id(used) if used else {}
     names = {i: segment_name(r["run"], r["session"], r["pool_id"]) for i, r in rows.items()}
@@ -74,9 +78,35 @@ def export_lines(db: LabelDB) -> Iterator[str]:
         yield json.dumps({"type": "survey", **dict(survey)})
 
 
-def export_file(db: LabelDB, path: Path) -> int:
+def agreed_pairs(
+    answered: list[tuple[StoredQuestion, StoredAnswer]], people: int
+) -> list[tuple[StoredQuestion, StoredAnswer]]:
+    """One answer for each pair of a session that `people` or more answered, every one of
+    them strictly and for the same segment (whichever way round it was shown): the session's
+    own question where it is among them, else the first asked. A team's gold pairs
+    (`seqrank.labelling.gold`) without the operator answering any."""
+    alike: dict[tuple[str, int, int, int], list[tuple[StoredQuestion, StoredAnswer]]] = {}
+    for question, answer in answered:
+        low, high = sorted((question.first, question.second))
+        pair = (question.run, question.session, low, high)
+        alike.setdefault(pair, []).append((question, answer))
+    kept = []
+    for given in alike.values():
+        preferred = {_preferred(question, answer) for question, answer in given}
+        authors = {answer.annotator for _, answer in given}
+        if len(authors) >= people and len(preferred) == 1 and None not in preferred:
+            kept.append(min(given, key=lambda qa: (qa[0].index < 0, qa[0].id)))
+    return sorted(kept, key=lambda qa: qa[0].id)
+
+
+def _preferred(question: StoredQuestion, answer: StoredAnswer) -> int | None:
+    """The segment a strict answer prefers; None for any other answer."""
+    return {"first": question.first, "second": question.second}.get(answer.answer)
+
+
+def export_file(db: LabelDB, path: Path, agreed_by: int | None = None) -> int:
     """Write the JSONL file; returns the number of answers written."""
-    lines = list(export_lines(db))
+    lines = list(export_lines(db, agreed_by))
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_suffix(path.suffix + ".part")
     partial.write_text("".join(line + "\n" for line in lines))
