@@ -94,6 +94,8 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
             err.print(f"interrupted: nothing written (no dataset {args.out})",
                       highlight=False, markup=False, soft_wrap=True)  # fmt: skip
             return stop.exit_code()
+        except ValueError as problem:  # SettingError too; save_episodes removed what it wrote
+            raise UsageError(str(problem)) from None
     out.print(f"dataset {location.dataset_id} written to {location.folder}", highlight=False)
     _print_info(_describe(args.out), out)
     return 0

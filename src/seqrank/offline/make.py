@@ -43,6 +43,7 @@ class MakeRequest:
 def check_request(request: MakeRequest) -> list[int | None]:
     """Each source's episode count, or a ValueError, before anything is played."""
     task_label(request.task)  # an unknown task is named before anything else
+    _check_task(request.task)
     if not np.isfinite(request.noise) or request.noise < 0:
         raise ValueError(f"--noise must be a number >= 0, got {request.noise}")
     counts: list[int | None]
@@ -59,6 +60,14 @@ def check_request(request: MakeRequest) -> list[int | None]:
     for source, count in zip(request.sources, counts, strict=True):
         check_source(source, request.task, count)
     return counts
+
+
+def _check_task(task: str) -> None:
+    """A ValueError (SettingError) for a task whose environment seqrank cannot play, e.g.
+    a Gymnasium task with Discrete actions: built once, so before anything is played."""
+    from seqrank.envs import make_env
+
+    make_env(task).close()
 
 
 def make_dataset(request: MakeRequest, out: str | Path) -> Location:

@@ -172,16 +172,20 @@ def _play_one(
     rng: np.random.Generator,
 ) -> PlayedEpisode:
     """One episode, with a row per observation of success and physics state (the reset's
-    first: what Minari's infos hold)."""
+    first: what Minari's infos hold); no states for a task without MuJoCo state (its
+    clips are frames, too big to keep: such a dataset cannot be labelled at the page)."""
+    keep_states = env.clip_source == "state"
     obs, info = env.reset(seed=reset_seed)
-    rows: dict[str, list[Any]] = {"obs": [obs], "state": [env.get_state()], "succ": [False]}
+    state = env.get_state() if keep_states else None
+    rows: dict[str, list[Any]] = {"obs": [obs], "state": [state], "succ": [False]}
     rows |= {"act": [], "rew": [], "term": []}
     done = truncated = False
     while not done:
         action = np.clip(policy(obs, rng), -1.0, 1.0).astype(np.float32)
         obs, reward, terminated, truncated, step_info = env.step(action)
         done = bool(terminated or truncated)
-        row = (obs, env.get_state(), step_info["success"], env.canonical_action(action),
+        state = env.get_state() if keep_states else None
+        row = (obs, state, step_info["success"], env.canonical_action(action),
                reward, terminated)  # fmt: skip
         for key, value in zip(rows, row, strict=True):
             rows[key].append(value)
@@ -195,7 +199,7 @@ def _play_one(
         ends,
         np.array(rows["succ"], bool),
         reset_seed,
-        np.array(rows["state"], np.float64),
+        np.array(rows["state"], np.float64) if keep_states else None,
         info.get("task_index"),
     )
 
