@@ -37,3 +37,33 @@ def test_a_task_with_discrete_actions_is_refused_in_one_line_leaving_nothing(tmp
                   "random", "--episodes", "2", "--out", str(out))  # fmt: skip
     assert "Discrete(2)" in err and "Box" in err
     assert not out.exists()
+
+
+def test_sources_without_a_share_split_what_the_shares_leave():
+    from seqrank.offline.sources import episode_counts, parse_source
+
+    def counts(*texts: str, episodes: int = 10) -> list[int]:
+        return episode_counts([parse_source(t) for t in texts], episodes)
+
+    assert counts("scripted=0.7", "random") == [7, 3]
+    assert counts("scripted=0.5", "random", "scripted:0.3") == [5, 3, 2]  # ties in order
+    assert counts("scripted=0.1", "random=0.2", "scripted:0.3=0.7") == [1, 2, 7]
+    assert counts("random", "scripted") == [5, 5]
+    for texts, why in (
+        (("scripted=0.7", "random=0.5"), "0.7 + 0.5 = 1.2, more than 1"),
+        (("scripted=0.7", "random=0.3", "scripted:0"), "leaving nothing"),
+        (("scripted=0.4", "random=0.3"), "less than 1, and no source without a share"),
+    ):
+        try:
+            counts(*texts)
+        except ValueError as problem:
+            assert why in str(problem) and "accepted: shares" in str(problem), problem
+        else:
+            raise AssertionError(f"{texts} were taken")
+
+
+def test_shares_that_do_not_add_up_are_refused_by_dataset_make(tmp_path, capsys):
+    err = refusal(capsys, "dataset", "make", "--task", "dmc:cartpole_swingup", "--source",
+                  "random=0.4", "--source", "random=0.3", "--episodes", "10",
+                  "--out", str(tmp_path / "d"))  # fmt: skip
+    assert "0.4 + 0.3 = 0.7, less than 1" in err and not (tmp_path / "d").exists()

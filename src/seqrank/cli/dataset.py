@@ -50,7 +50,8 @@ def _add_make(actions: Any) -> None:
         help="where episodes come from: random, scripted (Meta-World's scripted policy "
         "with --noise), scripted:SIGMA (its own noise) or run:PATH (a run's kept "
         "episodes), each optionally =SHARE of --episodes; repeatable, e.g. --source "
-        "scripted=0.7 --source random=0.3 (equal shares where none is given)",
+        "scripted=0.7 --source random (sources without a share split what the shares "
+        "leave equally; shares sum to 1 at most, and to 1 where every source has one)",
     )
     make.add_argument(
         "--episodes",

@@ -2,11 +2,13 @@
 scripted policies with Gaussian action noise, uniform random play, or a mixture of them.
 
 A source is written `random`, `scripted` (the noise of `--noise`), `scripted:SIGMA` or
-`run:PATH`, optionally followed by `=SHARE`: `--source scripted=0.7 --source random=0.3`
-shares `--episodes` between them (counts by largest remainder, each source's episodes in
-turn). Episodes are played through seqrank's own environments (`make_env`), so the
-observations are those seqrank's agents see; each played episode begins from its own
-reset seed, drawn from `--seed` and the source's place in the list.
+`run:PATH`, optionally followed by `=SHARE`: `--source scripted=0.7 --source random`
+shares `--episodes` between them, 70% and the 30% the shares leave (sources without a
+share split the rest equally; shares over 1, or under 1 with no source to take the rest,
+are refused; counts by largest remainder, each source's episodes in turn). Episodes are
+played through seqrank's own environments (`make_env`), so the observations are those
+seqrank's agents see; each played episode begins from its own reset seed, drawn from
+`--seed` and the source's place in the list.
 
 A run's episodes are those its last checkpoint kept (`rewardbench.pool.kept_episodes`),
 a true-reward or preference run's replay ("medium-replay" in LiRE's sense): all of them
@@ -82,10 +84,10 @@ def _noise(value: str, text: str) -> float:
 
 
 def episode_counts(sources: list[Source], episodes: int) -> list[int]:
-    """`episodes` shared between the sources by their shares (equal where none is given),
-    by largest remainder; a ValueError where a source would get none."""
-    shares = np.array([s.share if s.share is not None else 1.0 for s in sources])
-    exact = episodes * shares / shares.sum()
+    """`episodes` shared between the sources by their shares, by largest remainder;
+    sources without a share split equally what the others leave. A ValueError where the
+    shares do not add up (see `source_weights`) or a source would get none."""
+    exact = episodes * source_weights(sources)
     counts = np.floor(exact).astype(int)
     by_remainder = np.argsort(-(exact - counts), kind="stable")
     counts[by_remainder[: episodes - counts.sum()]] += 1
@@ -95,6 +97,33 @@ def episode_counts(sources: list[Source], episodes: int) -> list[int]:
             f"{len(sources)} sources): ask for more episodes or fewer sources"
         )
     return [int(c) for c in counts]
+
+
+def source_weights(sources: list[Source]) -> np.ndarray:
+    """Each source's fraction of the episodes: its share, or an equal part of what the
+    shares leave (all equal where none is given); shares above 1 in all, or below 1 with
+    no source to take the rest, are refused rather than scaled."""
+    given = [s.share for s in sources if s.share is not None]
+    total, unshared = float(sum(given)), len(sources) - len(given)
+    problem = None
+    if total > 1 + _SLACK:
+        problem = "more than 1"
+    elif unshared and total >= 1 - _SLACK:
+        problem = "1, leaving nothing for the sources without a share"
+    elif not unshared and total < 1 - _SLACK:
+        problem = "less than 1, and no source without a share takes the rest"
+    if problem:
+        listed = " + ".join(f"{share:g}" for share in given)
+        raise ValueError(
+            f"the source shares sum to {listed} = {total:g}, {problem}; accepted: shares "
+            "that sum to 1, or to less with sources without a share splitting the rest"
+        )
+    rest = (1.0 - total) / unshared if unshared else 0.0
+    weights = np.array([s.share if s.share is not None else rest for s in sources])
+    return weights / weights.sum()  # exactly 1 in all (0.1 + 0.2 is not 0.3)
+
+
+_SLACK = 1e-9  # shares written as decimals (0.1 + 0.2) sum to 1 within this
 
 
 def check_source(source: Source, task: str, count: int | None) -> None:
