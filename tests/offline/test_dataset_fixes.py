@@ -67,3 +67,48 @@ def test_shares_that_do_not_add_up_are_refused_by_dataset_make(tmp_path, capsys)
                   "random=0.4", "--source", "random=0.3", "--episodes", "10",
                   "--out", str(tmp_path / "d"))  # fmt: skip
     assert "0.4 + 0.3 = 0.7, less than 1" in err and not (tmp_path / "d").exists()
+
+
+def _minari_dataset(folder, rewards, low=-1.0, high=1.0, env_id="seqrank/cartpole_swingup-v0"):
+    """A dataset of one 10-step cartpole_swingup episode, written by Minari's own API."""
+    import gymnasium
+    import numpy as np
+    from minari.data_collector.episode_buffer import EpisodeBuffer
+    from minari.dataset.minari_storage import MinariStorage
+
+    import seqrank  # noqa: F401  (registers the seqrank/ ids)
+
+    folder.mkdir()
+    spaces = {
+        "observation_space": gymnasium.spaces.Box(-np.inf, np.inf, (5,), np.float32),
+        "action_space": gymnasium.spaces.Box(low, high, (1,), np.float32),
+    }
+    spec = gymnasium.spec(env_id) if env_id else None
+    storage = MinariStorage.new(folder / "data", env_spec=spec, **spaces)
+    storage.update_metadata({"dataset_id": "foreign-v0", "minari_version": "0.5.4"})
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(0, 1, (10, 1)) * (np.asarray(high) - low) + low
+    episode = EpisodeBuffer(
+        observations=rng.normal(size=(11, 5)).astype(np.float32),
+        actions=actions.astype(np.float32),
+        rewards=list(rewards),
+        terminations=[False] * 9 + [True],
+        truncations=[False] * 10,
+    )
+    storage.update_episodes([episode])
+    return folder
+
+
+def test_a_non_finite_reward_is_refused_in_one_line_by_every_command_that_loads_it(
+    tmp_path, capsys
+):
+    data = str(_minari_dataset(tmp_path / "nan", [0.5] * 4 + [float("nan")] + [0.5] * 5))
+    why = f"dataset {data}: episode 0 has a non-finite value (NaN or infinity) in its rewards"
+    for command in (
+        ["dataset", "info", data],
+        ["reward-bench", "pool", "--from-dataset", data, "--out", str(tmp_path / "p.npz")],
+        ["offline", "train", "--dataset", data, "--out", str(tmp_path / "run"), "--quiet"],
+        ["label", "offline", "--dataset", data, "--out", str(tmp_path / "labels")],
+    ):
+        assert why in refusal(capsys, *command), command
+    assert not any(p.name != "nan" for p in tmp_path.iterdir())

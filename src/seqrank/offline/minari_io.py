@@ -11,7 +11,9 @@ seqrank writes HDF5 (Minari's default format; `h5py`). Its provenance (task, sou
 seeds, sizes, seqrank version, command) is the `seqrank` entry of Minari's
 `metadata.json`; per-step `success` goes in the episodes' infos. A foreign dataset's task
 comes from its environment spec where that names a seqrank task (`seqrank/<task>` or a
-Gymnasium id seqrank plays as `gym:ID`), or from `task=` where the caller names it.
+Gymnasium id seqrank plays as `gym:ID`), or from `task=` where the caller names it. A
+dataset holding a NaN or infinity in its observations, actions or rewards is refused at
+load (it would make every return, pool and update NaN).
 """
 
 from __future__ import annotations
@@ -201,16 +203,18 @@ def _read_episodes(
     location: Location, task: str, metadata: dict[str, Any], name: str | Path
 ) -> OfflineDataset:
     columns: dict[str, list[np.ndarray]] = {key: [] for key in _COLUMNS}
-    for episode in _minari_episodes(location, name):
+    for index, episode in enumerate(_minari_episodes(location, name)):
         observations = _flat_rows(episode["observations"], name, "observations")
         actions = _flat_rows(episode["actions"], name, "actions")
+        rewards = np.asarray(episode["rewards"], np.float32)
+        _check_finite(name, episode.get("id", index), observations, actions, rewards)
         steps = len(actions)
         if steps == 0:
             continue  # an empty episode holds no transition
         columns["observations"].append(observations[:steps])
         columns["next_observations"].append(observations[1 : steps + 1])
         columns["actions"].append(actions)
-        columns["rewards"].append(np.asarray(episode["rewards"], np.float32))
+        columns["rewards"].append(rewards)
         columns["terminations"].append(np.asarray(episode["terminations"], bool))
         columns["truncations"].append(np.asarray(episode["truncations"], bool))
     if not columns["actions"]:
@@ -222,6 +226,17 @@ def _read_episodes(
     meta.update(dataset_id=metadata.get("dataset_id"), path=str(location.folder))
     arrays = {key: np.concatenate(rows) for key, rows in columns.items()}
     return OfflineDataset(task=task, starts=starts, meta=meta, **arrays)
+
+
+def _check_finite(name: str | Path, episode: object, *fields: np.ndarray) -> None:
+    """A ValueError naming the episode and field holding a NaN or infinity: one would turn
+    returns, pools and every update of a learner into NaN."""
+    for what, values in zip(("observations", "actions", "rewards"), fields, strict=True):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(
+                f"dataset {name}: episode {episode} has a non-finite value (NaN or infinity) "
+                f"in its {what}; seqrank reads datasets whose values are all finite"
+            )
 
 
 _COLUMNS = (
