@@ -4,6 +4,8 @@ the messages of datasets that cannot be read or labelled."""
 
 from __future__ import annotations
 
+import json
+
 from seqrank.cli import main
 from seqrank.offline.minari_io import episodes_with_states, load_dataset
 
@@ -112,3 +114,25 @@ def test_a_non_finite_reward_is_refused_in_one_line_by_every_command_that_loads_
     ):
         assert why in refusal(capsys, *command), command
     assert not any(p.name != "nan" for p in tmp_path.iterdir())
+
+
+def test_a_foreign_datasets_action_bounds_are_rescaled_to_minus_one_one(tmp_path, capsys):
+    import numpy as np
+
+    wide = load_dataset(_minari_dataset(tmp_path / "wide", [0.5] * 10, -2.0, 2.0))
+    # _minari_dataset's first draws, as a fraction of the bounds: [-2, 2] -> [-1, 1]
+    expected = np.random.default_rng(0).uniform(0, 1, (10, 1)) * 2 - 1
+    np.testing.assert_allclose(wide.actions, expected, atol=1e-6)
+    assert wide.meta["actions_rescaled_from"] == {"low": [-2.0], "high": [2.0]}
+    unit = load_dataset(_minari_dataset(tmp_path / "unit", [0.5] * 10))
+    np.testing.assert_allclose(unit.actions, expected, atol=1e-6)  # left as they are
+    assert "actions_rescaled_from" not in unit.meta
+    made = tmp_path / "made"  # seqrank's own datasets: Box(-1, 1), read as played
+    assert main(["dataset", "make", "--task", "dmc:cartpole_swingup", "--source", "random",
+                 "--episodes", "1", "--out", str(made)]) == 0  # fmt: skip
+    metadata = json.loads((made / "data" / "metadata.json").read_text())
+    assert json.loads(metadata["action_space"])["low"] == [-1.0]
+    assert "actions_rescaled_from" not in load_dataset(made).meta
+    infinite = str(_minari_dataset(tmp_path / "inf", [0.5] * 10, -np.inf, np.inf))
+    err = refusal(capsys, "dataset", "info", infinite)
+    assert "without finite bounds" in err and "accepted: Box action spaces" in err

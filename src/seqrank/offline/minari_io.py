@@ -14,6 +14,12 @@ comes from its environment spec where that names a seqrank task (`seqrank/<task>
 Gymnasium id seqrank plays as `gym:ID`), or from `task=` where the caller names it. A
 dataset holding a NaN or infinity in its observations, actions or rewards is refused at
 load (it would make every return, pool and update NaN).
+
+seqrank's policies act in [-1, 1] and its environments scale actions to the task's
+bounds, so a dataset's actions are read in [-1, 1]: seqrank writes its datasets with
+that action space (Box(-1, 1)), and a foreign dataset whose Box action space has other
+finite bounds (Pendulum's [-2, 2]) has its actions rescaled linearly, per dimension, on
+load (`meta["actions_rescaled_from"]` keeps the bounds); infinite bounds are refused.
 """
 
 from __future__ import annotations
@@ -203,11 +209,15 @@ def _read_episodes(
     location: Location, task: str, metadata: dict[str, Any], name: str | Path
 ) -> OfflineDataset:
     columns: dict[str, list[np.ndarray]] = {key: [] for key in _COLUMNS}
+    bounds = _action_bounds(metadata, name)
     for index, episode in enumerate(_minari_episodes(location, name)):
         observations = _flat_rows(episode["observations"], name, "observations")
         actions = _flat_rows(episode["actions"], name, "actions")
         rewards = np.asarray(episode["rewards"], np.float32)
         _check_finite(name, episode.get("id", index), observations, actions, rewards)
+        if bounds is not None:  # linear, per dimension: low -> -1, high -> 1
+            low, high = bounds
+            actions = (2.0 * (actions - low) / (high - low) - 1.0).astype(np.float32)
         steps = len(actions)
         if steps == 0:
             continue  # an empty episode holds no transition
@@ -223,9 +233,35 @@ def _read_episodes(
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
     provenance = metadata.get(PROVENANCE_KEY)
     meta = dict(provenance) if isinstance(provenance, dict) else {"foreign": True}
+    if bounds is not None:
+        meta["actions_rescaled_from"] = {"low": bounds[0].tolist(), "high": bounds[1].tolist()}
     meta.update(dataset_id=metadata.get("dataset_id"), path=str(location.folder))
     arrays = {key: np.concatenate(rows) for key, rows in columns.items()}
     return OfflineDataset(task=task, starts=starts, meta=meta, **arrays)
+
+
+def _action_bounds(metadata: dict[str, Any], name: str | Path) -> tuple[Any, Any] | None:
+    """The (low, high) of a Box action space other than [-1, 1], whose actions are to be
+    rescaled to seqrank's [-1, 1]; None for [-1, 1] (what seqrank writes) or a space that
+    is not a Box (refused by `_flat_rows`); a ValueError for infinite or empty bounds."""
+    import gymnasium
+    from minari.serialization import deserialize_space
+
+    try:
+        space = deserialize_space(metadata["action_space"])
+    except (KeyError, ValueError, TypeError, NotImplementedError):
+        return None  # no readable space: the actions are taken as they are
+    if not isinstance(space, gymnasium.spaces.Box):
+        return None
+    low, high = (np.asarray(b, np.float64).ravel() for b in (space.low, space.high))
+    if np.all(low == -1.0) and np.all(high == 1.0):
+        return None
+    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
+        raise ValueError(
+            f"dataset {name} has actions in {space}, without finite bounds to rescale them "
+            "to seqrank's [-1, 1]; accepted: Box action spaces with finite bounds"
+        )
+    return low, high
 
 
 def _check_finite(name: str | Path, episode: object, *fields: np.ndarray) -> None:
