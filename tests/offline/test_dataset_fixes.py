@@ -136,3 +136,33 @@ def test_a_foreign_datasets_action_bounds_are_rescaled_to_minus_one_one(tmp_path
     infinite = str(_minari_dataset(tmp_path / "inf", [0.5] * 10, -np.inf, np.inf))
     err = refusal(capsys, "dataset", "info", infinite)
     assert "without finite bounds" in err and "accepted: Box action spaces" in err
+
+
+def test_messages_name_what_is_wrong_with_a_dataset(tmp_path, capsys):
+    from dataclasses import replace
+
+    import numpy as np
+
+    from seqrank.offline.minari_write import save_episodes
+    from seqrank.offline.sources import random_play
+
+    err = refusal(capsys, "dataset", "make", "--task", "dmc:cartpole_swingup", "--source",
+                  "random", "--episodes", "1", "--out", "")  # fmt: skip
+    assert err.endswith("--out is empty; accepted: a Minari dataset id, (namespace/)name-vN, "
+                        "or the path of a dataset folder that does not exist yet")  # fmt: skip
+    played = random_play("dmc:cartpole_swingup", 3, np.random.SeedSequence(0))
+    mixed = [played[0], *(replace(e, states=None) for e in played[1:])]  # as a run's, some
+    save_episodes(mixed, tmp_path / "mixed", "dmc:cartpole_swingup", {}, "mixed")
+    try:
+        episodes_with_states(tmp_path / "mixed")
+    except ValueError as problem:
+        assert "holds no physics states in 2 of its 3 episodes" in str(problem), problem
+    else:
+        raise AssertionError("a dataset with stateless episodes was taken for labelling")
+    (tmp_path / "mixed" / "data" / "main_data.hdf5").unlink()
+    err = refusal(capsys, "dataset", "info", str(tmp_path / "mixed"))
+    assert f"dataset {tmp_path / 'mixed'} has its metadata but not its data file" in err
+    unnamed = str(_minari_dataset(tmp_path / "unnamed", [0.5] * 10, env_id=None))
+    err = refusal(capsys, "dataset", "info", unnamed)
+    assert "records no environment (no environment spec)): name the task" in err
+    assert "--task" in err and "None" not in err

@@ -75,8 +75,7 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
     """The input is checked before anything is played or written; a failure while
     writing leaves nothing behind (`save_episodes`). Ctrl-C or SIGTERM stop it at once
     (there is nothing to save): one line, and 130 or 143 as the other commands exit."""
-    from seqrank.offline.make import MakeRequest, check_request, make_dataset
-    from seqrank.offline.minari_write import check_new
+    from seqrank.offline.make import MakeRequest, check_out, check_request, make_dataset
     from seqrank.offline.sources import parse_source
     from seqrank.training.stopping import interrupt_on_signals
 
@@ -84,7 +83,7 @@ def run_make(args: argparse.Namespace, out: Console, err: Console) -> int:
         sources = [parse_source(text) for text in args.source]
         command = "seqrank " + shlex.join(args.command_line)
         request = MakeRequest(args.task, sources, args.episodes, args.noise, args.seed, command)
-        check_new(args.out)
+        check_out(args.out)
         check_request(request)
     except (ValueError, FileNotFoundError) as problem:
         raise UsageError(str(problem)) from None

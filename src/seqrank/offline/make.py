@@ -62,6 +62,16 @@ def check_request(request: MakeRequest) -> list[int | None]:
     return counts
 
 
+def check_out(out: str | Path) -> Location:
+    """Where the new dataset goes: a ValueError for an empty name or one that exists."""
+    if not str(out).strip():
+        raise ValueError(
+            "--out is empty; accepted: a Minari dataset id, (namespace/)name-vN, or the "
+            "path of a dataset folder that does not exist yet"
+        )
+    return check_new(out)
+
+
 def _check_task(task: str) -> None:
     """A ValueError (SettingError) for a task whose environment seqrank cannot play, e.g.
     a Gymnasium task with Discrete actions: built once, so before anything is played."""
@@ -74,7 +84,7 @@ def make_dataset(request: MakeRequest, out: str | Path) -> Location:
     """Play (or take) each source's episodes and write them as a Minari dataset at `out`
     (a Minari id or a folder path that does not exist yet)."""
     task = task_label(request.task)
-    check_new(out)
+    check_out(out)
     counts = check_request(request)
     episodes: list[PlayedEpisode] = []
     parts = []

@@ -161,10 +161,15 @@ def load_dataset(path_or_name: str | Path, task: str | None = None) -> OfflineDa
     location, metadata = read_metadata(path_or_name)
     recorded = dataset_task(metadata)
     if recorded is None and task is None:
+        env_id = _env_id(metadata)
+        spec = (
+            "records no environment (no environment spec)"
+            if env_id is None
+            else f"its environment spec {env_id!r} is not a task seqrank plays"
+        )
         raise ValueError(
             f"dataset {path_or_name} does not name a seqrank task (no seqrank provenance, and "
-            f"its environment spec {_env_id(metadata)!r} is not a task seqrank plays): name "
-            "the task (--task, or task= in Python)"
+            f"{spec}): name the task its episodes were played on (--task, or task= in Python)"
         )
     if recorded is not None and task is not None and not same_task(recorded, task):
         raise ValueError(
@@ -291,6 +296,14 @@ def _minari_episodes(location: Location, name: str | Path) -> Iterator[dict[str,
 
     try:
         storage = MinariStorage.read(location.data)
+    except ValueError as problem:  # Minari's "No data found in data path ..."
+        if "No data found" not in str(problem):
+            raise
+        raise ValueError(
+            f"dataset {name} has its metadata but not its data file (for HDF5, "
+            f"{location.data / 'main_data.hdf5'}): copy or make the whole dataset again"
+        ) from None
+    try:
         yield from storage.get_episodes(range(storage.total_episodes))
     except ImportError as problem:  # e.g. an Arrow dataset without pyarrow
         raise ValueError(
@@ -340,14 +353,18 @@ def episodes_with_states(name_or_path: str | Path, task: str | None = None) -> l
     location, _ = read_metadata(name_or_path)
     episodes = dataset.episodes()
     raw = (e for e in _minari_episodes(location, name_or_path) if len(e["rewards"]))
-    for episode, stored in zip(episodes, raw, strict=True):
-        infos = stored.get("infos") or {}
-        if "state" not in infos:
-            raise ValueError(
-                f"dataset {name_or_path} holds no physics states, from which the page renders "
-                "its clips: label a dataset made by `seqrank dataset make` from random or "
-                "scripted play (or from a run that recorded states)"
-            )
+    all_infos = [stored.get("infos") or {} for stored in raw]
+    stateless = sum("state" not in infos for infos in all_infos)
+    if stateless:
+        some = (
+            "" if stateless == len(episodes) else f" in {stateless} of its {len(episodes)} episodes"
+        )
+        raise ValueError(
+            f"dataset {name_or_path} holds no physics states{some}, from which the page "
+            "renders its clips: label a dataset made by `seqrank dataset make` from "
+            "random or scripted play of a MuJoCo task (or from a run that recorded states)"
+        )
+    for episode, infos in zip(episodes, all_infos, strict=True):
         episode.states = np.asarray(infos["state"])[: len(episode.reward)]
         if "task_index" in infos:
             episode.context = int(np.asarray(infos["task_index"])[0])
