@@ -6,7 +6,6 @@ uniform draw over the stored pool) does not change which segments come next."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from seqrank.episodes import Segments
 from seqrank.feedback.schemes import in_order_choice, uniform_choice
@@ -35,10 +34,3 @@ def test_a_continued_session_keeps_the_in_order_choice(tmp_path):
     model_picked = open_session(db, "run", 0, _request(_pool(100.0), max))  # (another chooser)
     assert model_picked.choices.base is uniform_choice
     db.close()
-
-
-def test_a_session_in_collection_order_takes_its_pool_as_it_comes():
-    with pytest.raises(ValueError, match="as it comes"):
-        SessionRequest(
-            "root", 4, 0, _pool(0.0), uniform_choice, np.random.default_rng(0), 0.0, in_order=True
-        )

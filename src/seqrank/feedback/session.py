@@ -58,8 +58,9 @@ class SessionRequest:
             reask (`LabelStore.distrusted`): each of their questions is asked again of a
             member who is not; empty otherwise.
         in_order: the pool is in the order its segments were collected (`segment_order
-            collection`) and is taken as it comes (`chooser` is `in_order_choice`): a crowd
-            deals it to its chains in turn, and a replayed session keeps that choice.
+            collection`) and is taken as it comes (`chooser` is `in_order_choice`, or a
+            page's replay of the choices it stored): a crowd deals it to its chains in
+            turn, and a replayed session keeps that choice.
 
     Examples:
         >>> import numpy as np, seqrank
@@ -96,11 +97,9 @@ class SessionRequest:
     chains: int = 1  # asked as this many chains side by side (a crowd: one per person)
     # a crowd's members whose questions are asked again of someone else (reask)
     distrusted: frozenset[str] = frozenset()
-    in_order: bool = False  # collection order, taken as it comes (`chooser`: in_order_choice)
-
-    def __post_init__(self) -> None:
-        if self.in_order and self.chooser is not in_order_choice:
-            raise ValueError("a session in collection order takes its pool as it comes")
+    # collection order, taken as it comes: `chooser` is in_order_choice, or at a team's page
+    # the stored choices replayed around it (`session_replay`)
+    in_order: bool = False
 
 
 class FeedbackSource(Protocol):
