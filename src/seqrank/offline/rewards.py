@@ -109,12 +109,14 @@ def learned_rewards(
 
 def check_learned_budget(config: OfflineConfig, dataset: OfflineDataset) -> None:
     """A ValueError, before anything is written, when the learned reward's questions need
-    more segments than the dataset holds."""
+    more segments than the dataset holds, or a replayed label file was recorded on another
+    task or on steps of another width (`check_replayed`)."""
     if config.reward != OfflineReward.LEARNED:
         return
     from seqrank.feedback.teachers import parse_teacher
     from seqrank.offline.labelling import check_budget
 
+    check_replayed(config, dataset)
     spec = parse_teacher(config.teacher)
     crowd = len(spec.members) if spec.kind == "crowd" else 0
     check_budget(
@@ -125,3 +127,23 @@ def check_learned_budget(config: OfflineConfig, dataset: OfflineDataset) -> None
         config.segment_length,
         crowd,
     )
+
+
+def check_replayed(config: OfflineConfig, dataset: OfflineDataset) -> None:
+    """A `replay:FILE` teacher's labels are of the dataset's task (any spelling of it) and
+    their steps of its width, as online `train` and `reward-bench score` require."""
+    from seqrank.envs import same_task
+    from seqrank.feedback.replay import ReplaySource
+    from seqrank.feedback.teachers import parse_teacher
+
+    file = parse_teacher(config.teacher).replay_file
+    if file is None:
+        return
+    source = ReplaySource.from_file(file)
+    recorded = source.labels.header.get("task")
+    if recorded is not None and not same_task(recorded, dataset.task):
+        raise ValueError(
+            f"label file {file} was recorded on {recorded}, not on the dataset's task "
+            f"{dataset.task}: replay labels of this task, or give a dataset of {recorded}"
+        )
+    source.check_compatible(dataset.task, dataset.obs_dim, dataset.act_dim)

@@ -1,0 +1,70 @@
+"""`seqrank offline train`, `label offline` and `reward-bench pool --from-dataset` refuse
+what they cannot use in one line, before anything is printed or made: labels of another
+task, numbers out of range, empty paths, budgets beyond the dataset (naming the flags and
+the largest accepted), `--steps` beside a dataset; a true-reward run records no
+learned-reward settings, and progress without a terminal shows each evaluation."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from seqrank.cli import main
+from seqrank.offline.launch import start_new
+from seqrank.offline.settings import LEARNED_ONLY, OfflineConfig
+from seqrank.training.loop import RunStopped
+from support.offline import LINE, write_dataset
+
+TINY = {"steps": 60, "eval_every": 30, "eval_episodes": 1, "hidden": 16, "batch": 32,
+        "log_every": 20, "device": "cpu"}  # fmt: skip
+
+
+def flags(settings: dict[str, object]) -> list[str]:
+    return [part for k, v in settings.items() for part in (f"--{k.replace('_', '-')}", str(v))]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_dataset(tmp_path_factory.mktemp("data") / "line", episodes=20, seed=0)
+
+
+@pytest.fixture(scope="module")
+def labels(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """20 root answers over the line dataset's segments (10 steps), as a label file."""
+    from seqrank.offline.labelling import label_dataset, save_labels
+    from seqrank.offline.minari_io import load_dataset
+
+    data = load_dataset(str(dataset))
+    asked = label_dataset(data, "root", "oracle", 20, 10, 10)
+    path = tmp_path_factory.mktemp("labels") / "labels.jsonl"
+    save_labels(asked, data, path, "root", "oracle", 10)
+    return path
+
+
+def refused(command: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    code = main(command)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    return err
+
+
+def test_labels_recorded_on_another_task_are_refused_before_any_labelling(
+    dataset, labels, tmp_path, capsys
+):
+    lines = labels.read_text().splitlines()
+    header = json.loads(lines[0])
+    assert header["task"] == "support.sb3_envs:make_line"
+    other = tmp_path / "other.jsonl"
+    moved = json.dumps({**header, "task": "dmc:cartpole_swingup"})
+    other.write_text("\n".join([moved, *lines[1:]]) + "\n")
+    out = tmp_path / "runs" / "run"
+    err = refused(["offline", "train", "--dataset", str(dataset), "--out", str(out),
+                   "--reward", "learned", "--teacher", f"replay:{other}", *flags(TINY)],
+                  capsys)  # fmt: skip
+    assert f"label file {other} was recorded on dmc:cartpole_swingup, not on the dataset's " \
+        "task support.sb3_envs:make_line" in err, err  # fmt: skip
+    assert "labelling" not in err and not (tmp_path / "runs").exists()
+
+
