@@ -68,3 +68,30 @@ def test_labels_recorded_on_another_task_are_refused_before_any_labelling(
     assert "labelling" not in err and not (tmp_path / "runs").exists()
 
 
+BOUNDS = {
+    "steps": (["--steps", "99999999999999999999"], "--steps must be a whole number from 1 to "
+              "1000000000, got 99999999999999999999"),
+    "eval episodes": (["--eval-episodes", "10001"], "--eval-episodes must be a whole number "
+                      "from 1 to 10000, got 10001"),
+    "hidden": (["--hidden", "5000"], "--hidden must be a whole number from 1 to 4096, got 5000"),
+    "batch": (["--batch", "100000"], "--batch 100000 is more than the 1000 transitions of "
+              "dataset {dataset}; accepted: 1 to 1000"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(BOUNDS))
+def test_numbers_out_of_range_and_empty_paths_are_refused(
+    case, dataset, tmp_path, monkeypatch, capsys
+):
+    options, text = BOUNDS[case]
+    monkeypatch.chdir(tmp_path)
+    settings = {**TINY, "batch": 32}
+    given = {options[i]: options[i + 1] for i in range(0, len(options), 2)}
+    command = ["offline", "train", "--dataset", str(dataset), "--out", "runs/run",
+               *[part for k, v in settings.items() if f"--{k.replace('_', '-')}" not in given
+                 for part in (f"--{k.replace('_', '-')}", str(v))], *options]  # fmt: skip
+    err = refused(command, capsys)
+    assert text.format(dataset=dataset) in err, err
+    assert list(tmp_path.iterdir()) == []
+
+

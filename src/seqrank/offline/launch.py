@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from seqrank.errors import SettingError, setting
 from seqrank.offline.dataset import OfflineDataset
 from seqrank.offline.settings import OfflineConfig, validate
 from seqrank.offline.train import OfflineTrainer, Progress
@@ -62,6 +63,11 @@ def load_checked(config: OfflineConfig) -> OfflineDataset:
             f"dataset {config.dataset} has observations of size {found[0]} and actions of "
             f"size {found[1]}; its task {dataset.task} has {expected[0]} and {expected[1]}: "
             "give a dataset made on this task"
+        )
+    if config.batch > len(dataset):
+        raise SettingError(
+            f"{setting('batch')} {config.batch} is more than the {len(dataset)} transitions of "
+            f"dataset {config.dataset}; accepted: 1 to {len(dataset)}"
         )
     check_learned_budget(config, dataset)
     return dataset

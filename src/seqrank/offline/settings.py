@@ -145,18 +145,20 @@ def _replayed(config: OfflineConfig, given: set[str]) -> OfflineConfig:
     return replace(config, **taken)
 
 
-# the least value of each whole-number setting
+# the least and the largest value of each whole-number setting (`batch` is held to the
+# dataset's transitions too, once it is read: `offline.launch.load_checked`)
+_MOST = 2**31 - 1  # `config.ranges.MAX_COUNT`, online `train`'s
 _WHOLE = {
-    "max_feedback": 1,
-    "segment_length": 1,
-    "session_questions": 1,
-    "steps": 1,
-    "eval_every": 1,
-    "eval_episodes": 1,
-    "batch": 1,
-    "hidden": 1,
-    "layers": 1,
-    "log_every": 1,
+    "max_feedback": (1, _MOST),
+    "segment_length": (1, _MOST),
+    "session_questions": (1, _MOST),
+    "steps": (1, 10**9),
+    "eval_every": (1, 10**9),
+    "eval_episodes": (1, 10_000),
+    "batch": (1, _MOST),
+    "hidden": (1, 4096),
+    "layers": (1, 64),
+    "log_every": (1, 10**9),
 }
 _RATES = ("actor_lr", "critic_lr", "value_lr", "target_rate")  # in (0, 1]
 
@@ -174,10 +176,12 @@ def validate(config: OfflineConfig) -> OfflineConfig:
     parse_teacher(config.teacher)
     if not 0 <= config.seed < 2**32:
         raise SettingError(f"{setting('seed')} must lie in 0 to 2**32 - 1, got {config.seed}")
-    for name, lowest in _WHOLE.items():
+    for name, (lowest, highest) in _WHOLE.items():
         value = getattr(config, name)
-        if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
-            raise SettingError(f"{setting(name)} must be a whole number >= {lowest}, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int) or not lowest <= value <= highest:
+            raise SettingError(
+                f"{setting(name)} must be a whole number from {lowest} to {highest}, got {value!r}"
+            )
     for name in _RATES:
         _number(config, name, lambda v: 0 < v <= 1, "in (0, 1]")
     _number(config, "expectile", lambda v: 0 < v < 1, "strictly between 0 and 1")
