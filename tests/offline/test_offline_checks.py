@@ -76,6 +76,8 @@ BOUNDS = {
     "hidden": (["--hidden", "5000"], "--hidden must be a whole number from 1 to 4096, got 5000"),
     "batch": (["--batch", "100000"], "--batch 100000 is more than the 1000 transitions of "
               "dataset {dataset}; accepted: 1 to 1000"),
+    "empty dataset": (["--dataset", ""], "--dataset must name a dataset, got an empty value"),
+    "empty out": (["--out", ""], "argument --out: an empty path names no run directory"),
 }  # fmt: skip
 
 

@@ -83,9 +83,9 @@ def add_parser(commands: Any) -> None:
 def _add_options(parser: argparse.ArgumentParser) -> None:
     from seqrank.offline.settings import OfflineConfig
 
-    parser.add_argument("--out", type=Path, default=argparse.SUPPRESS,
+    parser.add_argument("--out", type=_folder, default=argparse.SUPPRESS,
                         help="run directory (default: seqrank-out/runs/offline_...)")  # fmt: skip
-    parser.add_argument("--resume", type=Path, metavar="RUN_DIR", default=argparse.SUPPRESS,
+    parser.add_argument("--resume", type=_folder, metavar="RUN_DIR", default=argparse.SUPPRESS,
                         help="continue a stopped run from its last checkpoint")  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     for f in fields(OfflineConfig):
@@ -107,6 +107,12 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
             help=meaning,
         )
     parser.set_defaults(setting_flags=frozenset(f.name for f in fields(OfflineConfig)))
+
+
+def _folder(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path names no run directory")
+    return Path(text)
 
 
 def _true_or_false(text: str) -> bool:

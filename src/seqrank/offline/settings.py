@@ -101,6 +101,8 @@ def new_config(values: dict[str, Any]) -> OfflineConfig:
     resumed run finds it from anywhere)."""
     config = OfflineConfig.from_dict(values)
     given = set(values)
+    if not str(config.dataset).strip():
+        raise SettingError(f"{setting('dataset')} must name a dataset, got an empty value")
     if config.reward == OfflineReward.TRUE.value:
         extra = [setting(name) for name in LEARNED_ONLY if name in given]
         if extra:
