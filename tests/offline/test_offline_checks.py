@@ -78,6 +78,12 @@ BOUNDS = {
               "dataset {dataset}; accepted: 1 to 1000"),
     "empty dataset": (["--dataset", ""], "--dataset must name a dataset, got an empty value"),
     "empty out": (["--out", ""], "argument --out: an empty path names no run directory"),
+    "budget": (["--reward", "learned", "--scheme", "pairwise", "--max-feedback", "5000",
+                "--segment-length", "10"],
+               "a budget of 5000 pairwise questions (--max-feedback 5000, --session-questions "
+               "25) "
+               "needs 10000 segments of 10 steps; dataset line-v0 holds 820 distinct ones (20 "
+               "episodes, 1000 steps); accepted: --max-feedback 1 to 410, or a larger dataset"),
 }  # fmt: skip
 
 
@@ -95,5 +101,31 @@ def test_numbers_out_of_range_and_empty_paths_are_refused(
     err = refused(command, capsys)
     assert text.format(dataset=dataset) in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_budget_beyond_the_replay_file_names_the_accepted_range(
+    dataset, labels, tmp_path, capsys
+):
+    err = refused(["offline", "train", "--dataset", str(dataset), "--out", str(tmp_path / "r"),
+                   "--reward", "learned", "--teacher", f"replay:{labels}", "--max-feedback",
+                   "30", *flags(TINY)], capsys)  # fmt: skip
+    assert "--max-feedback 30 is more than the 20 answers" in err
+    assert "accepted: 1 to 20" in err
+
+
+def test_label_offline_names_its_flags_and_the_sessions_the_dataset_holds(tmp_path, capsys):
+    from support.datasets import write_datasets
+
+    data = write_datasets(tmp_path / "data")["dataset"]  # 2 episodes of 30 steps: 42 of 10
+    err = refused(["label", "offline", "--port", "0", "--dataset", data, "--segment-length",
+                   "10", "--questions", "5", "--sessions", "100", "--out",
+                   str(tmp_path / "labels")], capsys)  # fmt: skip
+    assert "(--questions 5 x --sessions 100) needs" in err, err
+    assert "accepted: --sessions 1 to " in err and "with --questions 5" in err, err
+    err = refused(["label", "offline", "--port", "0", "--dataset", data, "--segment-length",
+                   "10", "--questions", "50", "--out", str(tmp_path / "labels")],
+                  capsys)  # fmt: skip
+    assert "accepted: --questions 1 to " in err and "with --sessions 1" in err, err
+    assert not (tmp_path / "labels").exists()
 
 

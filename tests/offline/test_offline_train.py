@@ -206,7 +206,10 @@ BAD = {  # case -> (options, text the one line must hold); "DATA": the test's da
     "missing dataset": ({"dataset": "nothing"}, "no Minari dataset at"),
     "another task": ({"dataset": "DATA", "task": "dmc:cartpole_swingup"}, "is of task"),
     "sizes": ({"dataset": "wide"}, "observations of size 3"),
-    "budget": ({"dataset": "DATA", **BUDGET}, "a budget of 5000 pairwise questions needs"),
+    "budget": (
+        {"dataset": "DATA", **BUDGET},
+        "a budget of 5000 pairwise questions (--max-feedback 5000",
+    ),
     "segment longer than an episode": (  # the line task's episodes: 50 steps, cut
         {"dataset": "DATA", "reward": "learned", "max_feedback": 5, "segment_length": 51},
         "--segment-length 51 is longer than the shortest episode of dataset line-v0 that ends "

@@ -211,7 +211,7 @@ def _check_dataset_budget(args: argparse.Namespace, length: int, team: tuple[str
 
     dataset = load_dataset(args.dataset, args.task)
     budget = args.questions * args.sessions
-    check_budget(dataset, args.scheme, budget, args.questions, length, len(team))
+    check_budget(dataset, args.scheme, budget, args.questions, length, len(team), args.sessions)
 
 
 def _offline(args: argparse.Namespace, say: Any) -> int:

@@ -130,23 +130,62 @@ def check_budget(
     session_questions: int,
     segment_length: int,
     crowd: int = 0,
+    sessions: int | None = None,
 ) -> None:
     """A ValueError when a segment is longer than the dataset's episodes allow
     (`check_segment_length`), or the questions would need more segments than the dataset
-    holds (segments are drawn with replacement, so a session near that many repeats itself)."""
+    holds (segments are drawn with replacement, so a session near that many repeats itself).
+    It names the settings and the largest accepted: `max_feedback` in sessions of
+    `session_questions` (offline train), or with `sessions` given, `sessions` sessions of
+    `questions` (the labelling page's `label offline`)."""
     check_segment_length(dataset, segment_length)
-    sessions, last = divmod(budget, session_questions)
     chains = max(1, crowd)
-    needed = sessions * segments_needed(scheme, session_questions, chains)
-    needed += segments_needed(scheme, last, chains) if last else 0
+    needed = _segments_for(scheme, budget, session_questions, chains)
     available = distinct_segments(dataset, segment_length)
-    if needed > available:
-        raise ValueError(
-            f"a budget of {budget} {scheme} questions needs {needed} segments of "
-            f"{segment_length} steps; dataset {dataset.meta.get('dataset_id') or ''} holds "
-            f"{available} distinct ones ({dataset.episode_count} episodes, {len(dataset)} "
-            "steps): ask fewer questions, or use a larger dataset"
+    if needed <= available:
+        return
+    if sessions is None:
+        asked = (
+            f"{setting('max_feedback')} {budget}, "
+            f"{setting('session_questions')} {session_questions}"
         )
+        most = _largest_budget(scheme, budget, session_questions, chains, available)
+        accepted = f"{setting('max_feedback')} 1 to {most}"
+    else:
+        asked = f"--questions {session_questions} x --sessions {sessions}"
+        per_session = _segments_for(scheme, session_questions, session_questions, chains)
+        most = available // per_session
+        accepted = f"--sessions 1 to {most} with --questions {session_questions}"
+        if not most:
+            fewer = _largest_budget(scheme, session_questions, session_questions, chains, available)
+            accepted = f"--questions 1 to {fewer} with --sessions 1"
+    raise SettingError(
+        f"a budget of {budget} {scheme} questions ({asked}) needs {needed} segments of "
+        f"{segment_length} steps; dataset {dataset.meta.get('dataset_id') or ''} holds "
+        f"{available} distinct ones ({dataset.episode_count} episodes, {len(dataset)} steps); "
+        f"accepted: {accepted}, or a larger dataset"
+    )
+
+
+def _segments_for(scheme: str, budget: int, session_questions: int, chains: int) -> int:
+    """The segments `budget` questions in sessions of `session_questions` may draw."""
+    full, last = divmod(budget, session_questions)
+    needed = full * segments_needed(scheme, session_questions, chains)
+    return needed + (segments_needed(scheme, last, chains) if last else 0)
+
+
+def _largest_budget(
+    scheme: str, budget: int, session_questions: int, chains: int, available: int
+) -> int:
+    """The largest budget up to `budget` whose segments the dataset holds (0: none)."""
+    low, high = 0, budget  # the segments needed grow with the budget: bisect
+    while low < high:
+        middle = (low + high + 1) // 2
+        if _segments_for(scheme, middle, session_questions, chains) <= available:
+            low = middle
+        else:
+            high = middle - 1
+    return low
 
 
 def save_labels(

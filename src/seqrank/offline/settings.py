@@ -140,7 +140,8 @@ def _replayed(config: OfflineConfig, given: set[str]) -> OfflineConfig:
     if config.max_feedback > recorded.answers and "max_feedback" in given:
         raise SettingError(
             f"{setting('max_feedback')} {config.max_feedback} is more than the "
-            f"{recorded.answers} answers of {recorded.file}"
+            f"{recorded.answers} answers of {recorded.file}; accepted: 1 to {recorded.answers}, "
+            f"or leave {setting('max_feedback')} out to replay them all"
         )
     if "max_feedback" in given:
         taken.pop("max_feedback")
