@@ -129,3 +129,29 @@ def test_label_offline_names_its_flags_and_the_sessions_the_dataset_holds(tmp_pa
     assert not (tmp_path / "labels").exists()
 
 
+def test_a_true_reward_run_records_no_learned_settings_and_an_old_one_resumes(
+    dataset, tmp_path, capsys
+):
+    out = tmp_path / "run"
+    started = start_new(out, OfflineConfig(str(dataset), task=LINE, **TINY))
+
+    class StopAt:  # a stop request once 40 updates are made
+        def is_set(self) -> bool:
+            return started.trainer.counters.step >= 40
+
+    started.trainer.stop_requested = StopAt()
+    with pytest.raises(RunStopped):
+        started.trainer.train()
+    started.run.release()
+    config = json.loads((out / "config.json").read_text())
+    assert {name: config[name] for name in LEARNED_ONLY} == dict.fromkeys(LEARNED_ONLY)
+    # a run written before: its config.json records the learned-reward defaults
+    old = {**config, **{name: getattr(OfflineConfig("x"), name) for name in LEARNED_ONLY}}
+    (out / "config.json").write_text(json.dumps(old))
+    assert main(["offline", "train", "--resume", str(out), "--quiet"]) == 0, capsys.readouterr()
+    assert json.loads((out / "summary.json").read_text())["steps"] == 60
+    (out / "config.json").write_text(json.dumps(config))  # as this version writes it
+    assert main(["report", str(tmp_path)]) == 0, capsys.readouterr().err
+    assert "| support.sb3_envs:make_line | true-reward |" in capsys.readouterr().out
+
+

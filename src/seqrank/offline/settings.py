@@ -37,6 +37,10 @@ class RewardScale(StrEnum):
     NONE = "none"
 
 
+# what a learned reward is asked with: a run on the dataset's own reward takes none of them
+LEARNED_ONLY = ("scheme", "teacher", "max_feedback", "segment_length", "session_questions")
+
+
 @dataclass(frozen=True)
 class OfflineConfig:
     dataset: str  # a Minari dataset id or a dataset folder (`offline.minari_io.locate`)
@@ -68,11 +72,19 @@ class OfflineConfig:
     log_every: int = 1_000  # updates between `train` rows
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The settings as `config.json` records them: a true-reward run's learned-reward
+        settings are null (it asks no question; the CLI refuses them)."""
+        values = asdict(self)
+        if self.reward == OfflineReward.TRUE.value:
+            values.update(dict.fromkeys(LEARNED_ONLY))
+        return values
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> OfflineConfig:
-        """Settings read back from a `config.json` (keys it does not know are refused)."""
+        """Settings read back from a `config.json` (keys it does not know are refused; a
+        learned-reward setting recorded null takes its default, as `as_dict` writes a
+        true-reward run's)."""
+        values = {k: v for k, v in values.items() if not (k in LEARNED_ONLY and v is None)}
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
@@ -87,10 +99,6 @@ class OfflineConfig:
         reaching 0 at the run's last update."""
         shared = {f.name for f in fields(IQLSettings)} & {f.name for f in fields(self)}
         return IQLSettings(**{name: getattr(self, name) for name in shared}, decay_steps=self.steps)
-
-
-# what a learned reward is asked with: a run on the dataset's own reward takes none of them
-LEARNED_ONLY = ("scheme", "teacher", "max_feedback", "segment_length", "session_questions")
 
 
 def new_config(values: dict[str, Any]) -> OfflineConfig:
