@@ -155,3 +155,17 @@ def test_a_true_reward_run_records_no_learned_settings_and_an_old_one_resumes(
     assert "| support.sb3_envs:make_line | true-reward |" in capsys.readouterr().out
 
 
+def test_pool_from_a_dataset_refuses_steps(tmp_path, capsys):
+    from support.datasets import write_datasets
+
+    data = write_datasets(tmp_path / "data", episodes=12)["dataset"]
+    pool = tmp_path / "pool.npz"
+    command = ["reward-bench", "pool", "--from-dataset", data, "--out", str(pool)]
+    assert main(command) == 0, capsys.readouterr().err  # without --steps: the pool is made
+    pool.unlink()
+    capsys.readouterr()
+    err = refused([*command, "--steps", "10"], capsys)
+    assert "--steps 10 trains a run for the pool" in err and "leave out --steps" in err
+    assert not pool.exists()
+
+

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from seqrank.training.launch import Started
 
 SCHEMES = [s.value for s in SchemeName]
+POOL_STEPS = 50_000  # `reward-bench pool`'s true-reward training steps, by default
 
 
 def teacher_list(text: str) -> list[str]:
@@ -80,8 +81,8 @@ def _add_pool(actions: Any) -> None:
     pool.add_argument(
         "--steps",
         type=int_between(1, 10**8),
-        default=50_000,
-        help="true-reward training steps, on the CPU, in <out>.run/ (50000)",
+        help="true-reward training steps, on the CPU, in <out>.run/ (50000; not with "
+        "--from-dataset)",
     )
     pool.add_argument("--seed", type=seed_number, default=0, help="(0)")
     pool.add_argument(
@@ -141,6 +142,7 @@ def run_pool(args: argparse.Namespace, out: Console, err: Console) -> int:
     if args.from_dataset is not None:
         return _pool_from_dataset(args, out)
     args.random_episodes = 5 if args.random_episodes is None else args.random_episodes
+    args.steps = POOL_STEPS if args.steps is None else args.steps
     try:
         path = _new_pool_file(args.out)
         if args.until_step is not None and args.from_run is None:
@@ -182,6 +184,11 @@ def _pool_from_dataset(args: argparse.Namespace, out: Console) -> int:
         if args.from_run is not None or args.until_step is not None:
             raise ValueError("--from-dataset takes a dataset's episodes: leave out --from-run "
                              "and --until-step")  # fmt: skip
+        if args.steps is not None:
+            raise ValueError(
+                f"--steps {args.steps} trains a run for the pool; --from-dataset takes a "
+                "dataset's episodes and trains none: leave out --steps"
+            )
         path = _new_pool_file(args.out)
         dataset = load_dataset(args.from_dataset, task=args.task)
         check_pool_size(dataset.episode_count + random_count, f"dataset {args.from_dataset}")
