@@ -169,3 +169,16 @@ def test_pool_from_a_dataset_refuses_steps(tmp_path, capsys):
     assert not pool.exists()
 
 
+@pytest.mark.parametrize(
+    ("steps", "every", "lines"),
+    [(150, 150, ["update 150/150"]), (60, 30, ["update 30/60", "update 60/60"])],
+)
+def test_progress_without_a_terminal_shows_each_evaluation_and_the_end(
+    steps, every, lines, dataset, tmp_path, capsys
+):
+    settings = {**TINY, "steps": steps, "eval_every": every, "log_every": 50}
+    code = main(["offline", "train", "--dataset", str(dataset), "--out", str(tmp_path / "run"),
+                 *flags(settings)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert [line.split(" |")[0] for line in err.splitlines() if line.startswith("update")] == lines

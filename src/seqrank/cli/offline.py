@@ -220,7 +220,8 @@ def _with_progress(started: OfflineStarted, err: Console) -> dict[str, Any]:
             ret = live["eval_return"]
             text = f"return {'-' if ret is None else f'{ret:.1f}'} | {live['ups']:.0f} updates/s"
             progress.update(bar, completed=step, live=text)
-            if not err.is_terminal and step % config.eval_every == 0:
+            evaluated = step % config.eval_every == 0 or step == config.steps
+            if not err.is_terminal and evaluated:
                 err.print(f"update {step:,}/{config.steps:,} | {text}", highlight=False)
 
         trainer.progress = report

@@ -31,7 +31,7 @@ from seqrank.training.runs import RunDir
 
 Progress = Callable[[int, dict[str, Any]], None]
 OBS_STD_FLOOR = 1e-3  # added to each observation's std (LiRE's `compute_mean_std` eps)
-PROGRESS_EVERY = 100  # updates between progress calls
+PROGRESS_EVERY = 100  # updates between progress calls (and one after each evaluation)
 
 
 @dataclass
@@ -126,11 +126,12 @@ class OfflineTrainer:
             counters.train_seconds = time.perf_counter() - started
             if counters.step % c.log_every == 0:
                 self.log({"kind": "train", **self.agent.last_metrics})
-            if counters.step % c.eval_every == 0 or counters.step == c.steps:
+            evaluated = counters.step % c.eval_every == 0 or counters.step == c.steps
+            if evaluated:
                 self.evaluate()
                 counters.train_seconds = time.perf_counter() - started
                 self.save_checkpoint()
-            if self.progress is not None and counters.step % PROGRESS_EVERY == 0:
+            if self.progress is not None and (evaluated or counters.step % PROGRESS_EVERY == 0):
                 self.progress(counters.step, self.live())
         summary = self.summary()
         self.run.write_summary(summary)
