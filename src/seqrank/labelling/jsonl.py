@@ -139,14 +139,11 @@ def import_file(db: LabelDB, path: Path) -> int:
             if not defended or defended[0].get("left") == defended[0]["defender"]
             else "right"
         )
+        asked = sum(int(a["index"]) >= 0 for a in answers)  # (a team's opinions: below 0)
+        segments = labels.session_segments(names)
+        pool_ids = [pool[name] for name in names]  # (a file's pool ids may have gaps)
         db.create_session(
-            run,
-            session,
-            answers[0]["scheme"],
-            len(answers),
-            0,
-            side,
-            labels.session_segments(names),
+            run, session, answers[0]["scheme"], asked or len(answers), 0, side, segments, pool_ids
         )
         ids = db.segment_ids(run, session)
         for record in answers:
