@@ -35,16 +35,16 @@ def _carol(question) -> str:
     return "right" if agreed == "left" else "left"
 
 
-def _team_directory(tmp_path: Path) -> Path:
+def _team_directory(tmp_path: Path, states: bool = True) -> Path:
     """A team's labelling directory: one sequential session of 12 questions, each asked of
-    all three (overlap until 1000), over segments that keep physics states."""
+    all three (overlap until 1000), over segments that keep physics states (or not)."""
     directory = tmp_path / "team"
     hub = bare_team(directory, TEAM, 60.0, overlap=0.0, overlap_until=1000)
     for key, value in {"task": TASK, "obs_dim": 4, "act_dim": 1, "segment_length": 3}.items():
         hub.db.set_meta(key, json.dumps(value))
     request = team_request("sequential", 12, 3, spare=2)
     n = len(request.segments.rewards)
-    states = [np.full((3, 5), float(k)) for k in range(n)]
+    states = [np.full((3, 5), float(k)) if states else None for k in range(n)]
     pool = Segments(request.segments.features, request.segments.rewards, states, [None] * n)
     done = Event()
     rules = {"alice": _lower_first, "bob": _lower_first, "carol": _carol}
@@ -125,3 +125,44 @@ def test_a_run_directory_has_no_agreed_pairs(tmp_path, capsys):
 @pytest.fixture(autouse=True)
 def _quiet(monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")  # one-line refusals stay on one line
+
+
+def test_a_teams_exports_import_into_a_new_directory_and_come_back_the_same(tmp_path, capsys):
+    """A team's export leaves out the spare segments of a pool, and an agreed one most of
+    its pairs: their pool ids have gaps, which an import keeps."""
+    directory = _team_directory(tmp_path)
+    for name, extra in (("all", []), ("agreed", ["--agreed-by", "3"])):
+        exported = tmp_path / f"{name}.jsonl"
+        assert main(["labels", "export", str(directory), "-o", str(exported), *extra]) == 0
+        into = tmp_path / f"into-{name}"
+        assert main(["labels", "import", str(exported), str(into)]) == 0
+        again = tmp_path / f"again-{name}.jsonl"
+        assert main(["labels", "export", str(into), "-o", str(again)]) == 0
+        said = [(a["first"], a["second"], a["answer"], a["annotator"]) for a in _file(exported)[1]]
+        back = [(a["first"], a["second"], a["answer"], a["annotator"]) for a in _file(again)[1]]
+        assert sorted(back) == sorted(said) and said
+
+
+def test_an_agreed_file_that_cannot_serve_as_gold_says_so(tmp_path, capsys):
+    directory = _team_directory(tmp_path, states=False)
+    out = tmp_path / "agreed.jsonl"
+    assert main(["labels", "export", str(directory), "-o", str(out), "--agreed-by", "3"]) == 0
+    assert "cannot serve as --gold" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="keep their states"):
+        read_gold(out, TASK, 3)
+    kept = tmp_path / "kept.jsonl"
+    assert (
+        main(
+            [
+                "labels",
+                "export",
+                str(_team_directory(tmp_path / "b")),
+                "-o",
+                str(kept),
+                "--agreed-by",
+                "3",
+            ]
+        )
+        == 0
+    )
+    assert "cannot serve" not in capsys.readouterr().out

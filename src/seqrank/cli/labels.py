@@ -44,6 +44,12 @@ def run(args: argparse.Namespace, out: Console, err: Console) -> int:
         if args.action == "export":
             count, source = _export(args.directory, args.output, args.agreed_by)
             out.print(f"{count} answers of {source} written to {args.output}", highlight=False)
+            if args.agreed_by is not None and not _all_keep_states(args.output):
+                out.print(
+                    "its segments keep no physics states (a task without MuJoCo state), so "
+                    "it cannot serve as --gold: the page could not show their clips",
+                    highlight=False,
+                )
         else:
             count, db_path = _import(args.file, args.directory)
             out.print(f"{count} answers added to {db_path}", highlight=False)
@@ -82,6 +88,14 @@ def _export(directory: Path, output: Path, agreed_by: int | None) -> tuple[int, 
             "(a run directory)"
         )
     return _export_run(directory, output), f"run {directory}"
+
+
+def _all_keep_states(path: Path) -> bool:
+    """Whether every segment of the label file keeps the physics states its clip needs."""
+    from seqrank.feedback.label_file import read_label_file
+
+    segments = read_label_file(path).segments.values()
+    return all(segment.get("states") is not None for segment in segments)
 
 
 def _check_agreed(db: Any, agreed_by: int | None) -> None:

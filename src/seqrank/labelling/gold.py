@@ -66,7 +66,8 @@ def read_gold(path: Path, task: str, segment_length: int) -> GoldPairs:
     if bare:
         raise ValueError(
             f"{where}: segment {bare[0]!r} keeps no physics states, so its clip cannot be "
-            "shown; use a file the labelling page wrote"
+            "shown; use a file whose segments keep their states (the labelling page's, "
+            "on a task with MuJoCo state)"
         )
     row = {name: k for k, name in enumerate(names)}
     pairs = tuple((row[a], row[b], first) for (a, b), first in known.items())
