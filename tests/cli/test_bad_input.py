@@ -124,6 +124,10 @@ CASES = [
         "--segment-order collection gives the scheme its segments as they come; --selection ent",
     ),
     (
+        [*TRAIN, "--segment-order", "collection", "--parts", "low,varied"],
+        "ordered by skill level, not by when they were collected; --segment-order collection",
+    ),
+    (
         [*TRAIN, "--segment-order", "collection", "--teacher", "replay:{labels}"],
         "replays recorded segments; --segment-order collection orders new ones: leave it out",
     ),

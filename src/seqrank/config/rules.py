@@ -68,6 +68,12 @@ def check_segment_order(config: TrainConfig) -> None:
             f"{setting('teacher')} '{config.teacher}' replays recorded segments; {order} "
             "orders new ones: leave it out"
         )
+    if config.parts:
+        raise SettingError(
+            f"{setting('parts')} {config.parts!r} replaces a session's episodes with fresh "
+            f"ones ordered by skill level, not by when they were collected; {order} would "
+            "take that order for it: leave one out"
+        )
     if config.selection is not Selection.UNIFORM:
         raise SettingError(
             f"{order} gives the scheme its segments as they come; {setting('selection')} "
