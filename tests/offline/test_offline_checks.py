@@ -182,3 +182,28 @@ def test_progress_without_a_terminal_shows_each_evaluation_and_the_end(
     err = capsys.readouterr().err
     assert code == 0, err
     assert [line.split(" |")[0] for line in err.splitlines() if line.startswith("update")] == lines
+
+
+def test_report_names_the_task_of_a_run_made_without_one(dataset, tmp_path, capsys):
+    """An offline run made without `--task` records none: the report reads its dataset's
+    (the run unfinished) and then its summary's (finished; its dataset gone)."""
+    out = tmp_path / "runs" / "run"
+    started = start_new(out, OfflineConfig(str(dataset), **TINY))
+
+    class StopAt:
+        def is_set(self) -> bool:
+            return started.trainer.counters.step >= 40
+
+    started.trainer.stop_requested = StopAt()
+    with pytest.raises(RunStopped):
+        started.trainer.train()
+    started.run.release()
+    assert json.loads((out / "config.json").read_text())["task"] is None
+    unfinished = ["report", str(tmp_path / "runs"), "--include-unfinished"]
+    assert main(unfinished) == 0, capsys.readouterr().err
+    assert "support.sb3_envs:make_line" in capsys.readouterr().out
+    assert main(["offline", "train", "--resume", str(out), "--quiet"]) == 0, capsys.readouterr()
+    config = json.loads((out / "config.json").read_text())
+    (out / "config.json").write_text(json.dumps({**config, "dataset": str(tmp_path / "gone")}))
+    assert main(["report", str(tmp_path / "runs")]) == 0, capsys.readouterr().err
+    assert "support.sb3_envs:make_line" in capsys.readouterr().out

@@ -54,6 +54,24 @@ class RunResult:
         return None if self.score is None or scale is None else self.score / scale
 
 
+def _offline_task(directory: Path, config: dict[str, Any]) -> str | None:
+    """The task of an offline run made without `--task` (its config records null): the
+    one its summary names, else the one its dataset records; None when neither can say."""
+    summary = directory / "summary.json"
+    if summary.is_file():
+        task = json.loads(summary.read_text()).get("task")
+        if task:
+            return str(task)
+    if not config.get("dataset"):
+        return None
+    from seqrank.offline.minari_io import dataset_task, read_metadata
+
+    try:
+        return dataset_task(read_metadata(config["dataset"])[1])
+    except (OSError, ValueError):
+        return None
+
+
 def collect_runs(folder: Path) -> list[RunResult]:
     folder = Path(folder)
     if not folder.is_dir():
@@ -67,6 +85,9 @@ def collect_runs(folder: Path) -> list[RunResult]:
             continue  # not a run directory of ours (or a broken one): nothing to report
         if "scheme" not in config or "task" not in config:
             continue
+        task = config["task"] or _offline_task(directory, config)
+        if task is None:
+            continue  # an offline run whose dataset is gone and that never finished
         rows = read_rows(directory / "metrics.jsonl")
         evals = [r for r in rows if r.get("kind") == "eval"]
         curve = tuple(
@@ -77,7 +98,7 @@ def collect_runs(folder: Path) -> list[RunResult]:
         results.append(
             RunResult(
                 directory,
-                config["task"],
+                task,
                 config["scheme"],
                 config.get("backbone", "pebble"),
                 config.get("teacher", "oracle"),
