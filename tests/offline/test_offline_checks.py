@@ -43,6 +43,20 @@ def labels(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+def stopped_at_40(out: Path, config: OfflineConfig) -> None:
+    """A new offline run in `out`, stopped (as by Ctrl-C) once 40 updates are made."""
+    started = start_new(out, config)
+
+    class StopAt:
+        def is_set(self) -> bool:
+            return started.trainer.counters.step >= 40
+
+    started.trainer.stop_requested = StopAt()
+    with pytest.raises(RunStopped):
+        started.trainer.train()
+    started.run.release()
+
+
 def refused(command: list[str], capsys: pytest.CaptureFixture[str]) -> str:
     code = main(command)
     err = capsys.readouterr().err.strip()
@@ -133,16 +147,7 @@ def test_a_true_reward_run_records_no_learned_settings_and_an_old_one_resumes(
     dataset, tmp_path, capsys
 ):
     out = tmp_path / "run"
-    started = start_new(out, OfflineConfig(str(dataset), task=LINE, **TINY))
-
-    class StopAt:  # a stop request once 40 updates are made
-        def is_set(self) -> bool:
-            return started.trainer.counters.step >= 40
-
-    started.trainer.stop_requested = StopAt()
-    with pytest.raises(RunStopped):
-        started.trainer.train()
-    started.run.release()
+    stopped_at_40(out, OfflineConfig(str(dataset), task=LINE, **TINY))
     config = json.loads((out / "config.json").read_text())
     assert {name: config[name] for name in LEARNED_ONLY} == dict.fromkeys(LEARNED_ONLY)
     # a run written before: its config.json records the learned-reward defaults
@@ -188,16 +193,7 @@ def test_report_names_the_task_of_a_run_made_without_one(dataset, tmp_path, caps
     """An offline run made without `--task` records none: the report reads its dataset's
     (the run unfinished) and then its summary's (finished; its dataset gone)."""
     out = tmp_path / "runs" / "run"
-    started = start_new(out, OfflineConfig(str(dataset), **TINY))
-
-    class StopAt:
-        def is_set(self) -> bool:
-            return started.trainer.counters.step >= 40
-
-    started.trainer.stop_requested = StopAt()
-    with pytest.raises(RunStopped):
-        started.trainer.train()
-    started.run.release()
+    stopped_at_40(out, OfflineConfig(str(dataset), **TINY))
     assert json.loads((out / "config.json").read_text())["task"] is None
     unfinished = ["report", str(tmp_path / "runs"), "--include-unfinished"]
     assert main(unfinished) == 0, capsys.readouterr().err
