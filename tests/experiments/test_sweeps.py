@@ -459,3 +459,34 @@ def test_runs_start_seed_by_seed_so_a_stopped_sweep_leaves_every_method_the_same
         "walker_walk/root_pebble_oracle_seed1",
         "walker_walk/true-reward_seed1",
     ]
+
+
+def test_runs_saved_before_a_crowd_default_changed_are_kept_and_resume(tmp_path, capsys):
+    """A one-teacher run never reads the crowd's settings: a default changed since it was
+    saved (crowd_weighting none -> drop) neither marks it changed nor stops its resume."""
+    from dataclasses import replace
+
+    from seqrank.choices import CrowdWeighting
+    from seqrank.cli import main
+    from seqrank.training.runs import RunDir
+
+    overrides = "\n".join(f"{key} = {value}" for key, value in TINY.items())
+    spec = tmp_path / "grid.toml"
+    spec.write_text(
+        f'out = "{tmp_path / "out"}"\ndevice = "cpu"\ntasks = ["dmc:cartpole_swingup"]\n'
+        f'schemes = ["pairwise", "root"]\n[overrides]\n{overrides}\n'
+    )
+    sweep = load_sweep(spec)
+    finished, unfinished = sweep.runs
+    assert finished.config.crowd_weighting is not CrowdWeighting.NONE
+    for planned in sweep.runs:
+        old = replace(planned.config, crowd_weighting=CrowdWeighting.NONE)
+        run = RunDir.create(sweep.out / "runs" / planned.name, old, "cpu")
+        if planned is finished:
+            run.write_summary({"final_eval_return": 0.0})
+        run.release()
+    assert main(["sweep", str(spec), "--workers", "1"]) == 0, capsys.readouterr().err
+    runs = {r["name"]: r for r in json.loads((sweep.out / "sweep.json").read_text())["runs"]}
+    assert runs[finished.name]["outcome"] == "skipped"
+    assert runs[unfinished.name]["state"] == "finished"
+    assert (sweep.out / "runs" / unfinished.name / "summary.json").is_file()

@@ -9,7 +9,7 @@ import json
 import re
 import unicodedata
 from collections.abc import Collection
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -82,6 +82,24 @@ def check_segment_order(config: TrainConfig) -> None:
         )
 
 
+CROWD_SETTINGS = ("overlap", "overlap_until", "closure_checks", "crowd_weighting")
+
+
+def unread_crowd_settings(config: TrainConfig) -> frozenset[str]:
+    """The crowd's settings where no crowd answers (one teacher, no team): they never reach
+    the run, so a default changed since it was saved neither changes nor stops it."""
+    if config.teacher_spec.kind == "crowd" or config.annotators:
+        return frozenset()
+    return frozenset(CROWD_SETTINGS)
+
+
+def with_unread_crowd_defaults(config: TrainConfig) -> TrainConfig:
+    """`config` with the crowd's settings it never reads at today's defaults (a run saved
+    under older defaults resumes under today's rules)."""
+    unread = unread_crowd_settings(config)
+    return replace(config, **{f.name: f.default for f in fields(config) if f.name in unread})
+
+
 def check_crowd(config: TrainConfig) -> None:
     """The crowd's settings act on a crowd's answers only."""
     kind = config.teacher_spec.kind
@@ -104,13 +122,9 @@ def check_crowd(config: TrainConfig) -> None:
                 "others about the pair a member answered, not the pairs their chain inferred: "
                 "leave it out (a simulated crowd takes it)"
             )
-    if kind == "crowd" or config.annotators:
+    if not unread_crowd_settings(config):
         return
-    crowd_only = [
-        f
-        for f in fields(config)
-        if f.name in ("overlap", "overlap_until", "closure_checks", "crowd_weighting")
-    ]
+    crowd_only = [f for f in fields(config) if f.name in CROWD_SETTINGS]
     given = [f.name for f in crowd_only if getattr(config, f.name) != f.default]
     if given:
         names = " and ".join(setting(name) for name in given)

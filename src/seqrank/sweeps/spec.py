@@ -229,10 +229,14 @@ def baseline_unused(reward: RewardSignal, settings: dict[str, Any]) -> frozenset
 
 
 def unused_settings(config: TrainConfig) -> frozenset[str]:
-    """The settings that never reach a run of this config (none for a learned reward)."""
+    """The settings that never reach a run of this config: the crowd's where one teacher
+    answers, and a baseline's unread ones."""
+    from seqrank.config.rules import unread_crowd_settings
+
+    crowd = unread_crowd_settings(config)
     if config.reward.asks:
-        return frozenset()
-    return baseline_unused(config.reward, config.as_dict())
+        return crowd
+    return crowd | baseline_unused(config.reward, config.as_dict())
 
 
 def _check_path(config: TrainConfig, device: str) -> None:

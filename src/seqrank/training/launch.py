@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from seqrank.config import TrainConfig, config_differences, validate
+from seqrank.config.rules import with_unread_crowd_defaults
 from seqrank.errors import SettingError, setting
 from seqrank.training.runs import RunDir
 
@@ -95,7 +96,9 @@ def continue_run(path: Path, factory: Factory, expected: TrainConfig | None = No
     run = RunDir.open(path)
     run.lock()
     try:
-        config = run.read_config()
+        config = with_unread_crowd_defaults(run.read_config())
+        if expected is not None:
+            expected = with_unread_crowd_defaults(expected)
         if expected is not None and config != expected:
             changed = "; ".join(config_differences(config, expected))
             raise ValueError(
