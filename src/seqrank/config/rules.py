@@ -97,7 +97,8 @@ def with_unread_crowd_defaults(config: TrainConfig) -> TrainConfig:
     """`config` with the crowd's settings it never reads at today's defaults (a run saved
     under older defaults resumes under today's rules)."""
     unread = unread_crowd_settings(config)
-    return replace(config, **{f.name: f.default for f in fields(config) if f.name in unread})
+    defaults: dict[str, Any] = {f.name: f.default for f in fields(config) if f.name in unread}
+    return replace(config, **defaults)
 
 
 def check_crowd(config: TrainConfig) -> None:
