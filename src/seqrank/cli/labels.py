@@ -33,7 +33,11 @@ def add_parser(commands: Any) -> None:
         help="only the pairs N or more people of a team answered alike, every answer strict "
         "(a gold file for the team's next run: `label online --gold`); off: every answer",
     )
-    load = actions.add_parser("import", help="add a JSONL file's answers to a labelling directory")
+    load = actions.add_parser(
+        "import",
+        help="add a JSONL file's answers to a labelling directory: all of them in one "
+        "transaction, or none when any record cannot be stored",
+    )
     load.add_argument("file", type=Path, help="a JSONL file from `seqrank labels export`")
     load.add_argument("directory", type=Path, help="the labelling directory to add them to")
     labels.set_defaults(handler=run)

@@ -2,8 +2,11 @@
 
 Durability is the point: every write is its own transaction, committed (WAL, synchronous
 FULL) before the caller hears back, so an answer the page was told about survives a kill at
-any moment. A question is keyed by (run, session, index); its answer by the question id, so
-a repeated submission finds the stored answer instead of writing a second one.
+any moment. Writes made inside `transaction()` join it (as savepoints) and are committed
+with it, all or none: an import leaves no half-made session behind.
+
+A question is keyed by (run, session, index); its answer by the question id, so a repeated
+submission finds the stored answer instead of writing a second one.
 
 `run` names a training run inside one labelling directory ("online" / "offline", or the
 scheme in a study); `session` and `index` count from 0. The schema and the records the
@@ -77,12 +80,16 @@ class LabelDB:
 
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
-        with self._lock:
+        with self._lock:  # (held throughout: an open transaction is this thread's alone)
+            if self._conn.in_transaction:  # inside another: a savepoint, committed with it
+                yield from _savepoint(self._conn)
+                return
             self._conn.execute("BEGIN IMMEDIATE")
             try:
                 yield self._conn
             except BaseException:
-                self._conn.execute("ROLLBACK")
+                if self._conn.in_transaction:  # (SQLite may have rolled back already)
+                    self._conn.execute("ROLLBACK")
                 raise
             self._conn.execute("COMMIT")
             self.changed.notify_all()
@@ -91,7 +98,8 @@ class LabelDB:
         with self._lock:
             return list(self._conn.execute(sql, params))
 
-    # for the tables of other modules (`seqrank.labelling.crowd_db`), on this lock
+    # for the tables of other modules (`seqrank.labelling.crowd_db`), on this lock, and to
+    # make several writes one (`seqrank.labelling.jsonl.import_file`)
     def transaction(self) -> contextlib.AbstractContextManager[sqlite3.Connection]:
         return self._transaction()
 
@@ -360,6 +368,20 @@ def _insert_segments(
             "states, context) VALUES (?, ?, ?, ?, ?, ?, ?)",
             segment_values(run, session, pool_id, segments, row),
         )
+
+
+def _savepoint(conn: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
+    """A write inside an open transaction: undone alone if it fails, else kept for the
+    enclosing transaction to commit or roll back."""
+    conn.execute("SAVEPOINT inner")
+    try:
+        yield conn
+    except BaseException:
+        if conn.in_transaction:
+            conn.execute("ROLLBACK TO inner")
+            conn.execute("RELEASE inner")
+        raise
+    conn.execute("RELEASE inner")
 
 
 def _opinions_key(run: str, session: int) -> str:

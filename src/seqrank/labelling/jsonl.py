@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+import sqlite3
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from seqrank.feedback.label_file import FORMAT, VERSION, read_label_file
-from seqrank.labelling.db import LabelDB, StoredAnswer, StoredQuestion, from_blob
+from seqrank.feedback.label_file import FORMAT, VERSION, LabelFile, read_label_file
+from seqrank.labelling.db import (
+    AnswerConflict,
+    LabelDB,
+    StoredAnswer,
+    StoredQuestion,
+    from_blob,
+)
 
 META_KEYS = ("task", "obs_dim", "act_dim", "segment_length")
 
@@ -117,60 +124,109 @@ def export_file(db: LabelDB, path: Path, agreed_by: int | None = None) -> int:
 def import_file(db: LabelDB, path: Path) -> int:
     """Load a label file into a labelling database; returns the answers added.
 
-    Importing the same file twice adds nothing. A session already in the database must hold
-    the same answers, otherwise nothing is imported and a ValueError says where they differ.
+    One transaction: the whole file or, on any error, nothing (a session half stored would
+    look imported, and a second try would add nothing to it). Importing the same file twice
+    adds nothing. A session already in the database must hold the same answers, otherwise
+    nothing is imported and a ValueError says where they differ; a record that cannot be
+    stored is named the same way.
     """
     labels = read_label_file(path)
-    _check_meta(db, labels.header, path)
-    plan = []
-    for run, session in labels.sessions():
-        answers = [a for a in labels.answers if (a["run"], a["session"]) == (run, session)]
-        if db.session_row(run, session) is not None:
-            _check_same(db, run, session, answers, path)
-        else:
-            plan.append((run, session, answers))
-    added = 0
-    for run, session, answers in plan:
-        names = list(dict.fromkeys(n for a in answers for n in (a["first"], a["second"])))
-        pool = _pool_ids(names, run, session)
-        defended = [a for a in answers if a.get("defender")]
-        side = (
-            "left"
-            if not defended or defended[0].get("left") == defended[0]["defender"]
-            else "right"
-        )
-        asked = sum(int(a["index"]) >= 0 for a in answers)  # (a team's opinions: below 0)
-        segments = labels.session_segments(names)
-        pool_ids = [pool[name] for name in names]  # (a file's pool ids may have gaps)
-        db.create_session(
-            run, session, answers[0]["scheme"], asked or len(answers), 0, side, segments, pool_ids
-        )
-        ids = db.segment_ids(run, session)
-        for record in answers:
-            first, second = ids[pool[record["first"]]], ids[pool[record["second"]]]
-            left = ids[pool[record.get("left", record["first"])]]
-            right = second if left == first else first
-            defender = ids[pool[record["defender"]]] if record.get("defender") else None
-            question = db.ensure_question(
-                run, session, int(record["index"]), first, second, defender, left, right
-            )
-            db.record_answer(
-                question,
-                _choice(record, left, first),
-                float(record.get("latency_ms", 0.0)),
-                str(record.get("annotator", "imported")),
-                must_be_asked=False,
-            )
-            added += 1
-    for survey in labels.surveys:
-        db.record_survey(
-            survey["run"],
-            survey["scheme"],
-            int(survey["satisfaction"]),
-            str(survey.get("criteria", "")),
-            str(survey.get("annotator", "imported")),
-        )
+    with db.transaction():
+        _check_meta(db, labels.header, path)
+        plan = []
+        for run, session in labels.sessions():
+            answers = [a for a in labels.answers if (a["run"], a["session"]) == (run, session)]
+            if db.session_row(run, session) is not None:
+                _check_same(db, run, session, answers, path)
+            else:
+                plan.append((run, session, answers))
+        added = 0
+        for run, session, answers in plan:
+            where = f"{path}: run {run!r} session {session}"
+            added += _failing_as(where, _import_session, db, labels, where, session, answers)
+        for survey in labels.surveys:
+            _failing_as(f"{path}: survey of run {survey['run']!r}", _import_survey, db, survey)
     return added
+
+
+class ImportFailed(ValueError):
+    """A record of the file could not be stored; the message names it, in one line."""
+
+
+# what a record the file reader let through can raise once it is being stored
+_STORE_ERRORS = (ValueError, TypeError, KeyError, RuntimeError, AnswerConflict, sqlite3.Error)
+
+
+def _failing_as(where: str, write: Callable[..., int], *args: Any) -> int:
+    """`write(*args)`, its failure an ImportFailed that says `where`."""
+    try:
+        return write(*args)
+    except ImportFailed:
+        raise
+    except _STORE_ERRORS as problem:
+        if isinstance(problem, KeyError) and problem.args:
+            why = f"no {problem.args[0]!r}"
+        else:
+            why = " ".join(str(problem).split()) or type(problem).__name__
+        raise ImportFailed(f"{where}: {why}; nothing imported") from problem
+
+
+def _import_session(
+    db: LabelDB, labels: LabelFile, where: str, session: int, answers: list[dict[str, Any]]
+) -> int:
+    """Store one session of the file: its pool, then its questions and answers."""
+    run = answers[0]["run"]
+    names = list(dict.fromkeys(n for a in answers for n in (a["first"], a["second"])))
+    pool = _pool_ids(names, run, session)
+    defended = [a for a in answers if a.get("defender")]
+    side = "left" if not defended or defended[0].get("left") == defended[0]["defender"] else "right"
+    asked = sum(int(a["index"]) >= 0 for a in answers)  # (a team's opinions: below 0)
+    segments = labels.session_segments(names)
+    pool_ids = [pool[name] for name in names]  # (a file's pool ids may have gaps)
+    db.create_session(
+        run, session, answers[0]["scheme"], asked or len(answers), 0, side, segments, pool_ids
+    )
+    ids = db.segment_ids(run, session)
+    for record in answers:
+        asked_as = f"{where} question {record['index']}"
+        _failing_as(asked_as, _import_answer, db, run, session, record, ids, pool)
+    return len(answers)
+
+
+def _import_answer(
+    db: LabelDB,
+    run: str,
+    session: int,
+    record: dict[str, Any],
+    ids: dict[int, int],
+    pool: dict[str, int],
+) -> int:
+    first, second = ids[pool[record["first"]]], ids[pool[record["second"]]]
+    left = ids[pool[record.get("left", record["first"])]]
+    right = second if left == first else first
+    defender = ids[pool[record["defender"]]] if record.get("defender") else None
+    question = db.ensure_question(
+        run, session, int(record["index"]), first, second, defender, left, right
+    )
+    db.record_answer(
+        question,
+        _choice(record, left, first),
+        float(record.get("latency_ms", 0.0)),
+        str(record.get("annotator", "imported")),
+        must_be_asked=False,
+    )
+    return 1
+
+
+def _import_survey(db: LabelDB, survey: dict[str, Any]) -> int:
+    db.record_survey(
+        survey["run"],
+        survey["scheme"],
+        int(survey["satisfaction"]),
+        str(survey.get("criteria", "")),
+        str(survey.get("annotator", "imported")),
+    )
+    return 0
 
 
 def _pool_ids(names: list[str], run: str, session: int) -> dict[str, int]:
