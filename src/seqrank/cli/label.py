@@ -10,11 +10,10 @@ from rich.console import Console
 
 from seqrank.cli.label_page import (
     check_address,
-    finish,
     human_overrides,
     human_trainer,
     page_options,
-    serve,
+    page_served,
     server_options,
 )
 from seqrank.cli.label_study import add_study, run_study
@@ -246,15 +245,13 @@ def _offline(args: argparse.Namespace, say: Any) -> int:
                 options.overlap_until, gold,
             )  # fmt: skip
         record_offline_settings(hub.db, settings)
-        with stop_on_signals(hub.stop.set, say) as stop:
-            server = serve(hub, args, say)
+        with stop_on_signals(hub.stop.set, say) as stop, page_served(hub, directory, args, say):
             try:
                 answers = run_offline(directory, options, hub, say)
                 say(f"offline labelling complete: {answers} answers")
             except (KeyboardInterrupt, Stopped):
                 say("stopped; every given answer is saved; run the same command to continue")
                 hub.stop.set()
-            finish(hub, server, directory, args, say)
     finally:
         lock.release()
     return stop.exit_code(0) if stop.received else 0
@@ -346,8 +343,7 @@ def _train_online(started: Any, hub: Any, args: argparse.Namespace, say: Any) ->
         trainer.stop_requested.set()
         hub.stop.set()
 
-    with stop_on_signals(stop_now, say) as stop:
-        server = serve(hub, args, say)
+    with stop_on_signals(stop_now, say) as stop, page_served(hub, path, args, say):
         try:
             summary = train_with_person(trainer, hub, say)
             if summary is not None:
@@ -358,5 +354,4 @@ def _train_online(started: Any, hub: Any, args: argparse.Namespace, say: Any) ->
             hub.stop.set()
         if stop.received or hub.stop.is_set():
             say(f"stopped; continue with: seqrank label online --resume {path}")
-        finish(hub, server, path, args, say)
     return stop.exit_code(0) if stop.received else 0

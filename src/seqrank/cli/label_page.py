@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import socket
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -132,6 +134,21 @@ def serve(hub: Any, args: argparse.Namespace, say: Any) -> Any:
     for line in server.announce():
         say(line)
     return server
+
+
+@contextlib.contextmanager
+def page_served(hub: Any, directory: Path, args: argparse.Namespace, say: Any) -> Iterator[Any]:
+    """The page served within the block, then `finish` on every way out, an error's too:
+    the server and clip threads must be ended (the GL context freed on its own thread)
+    before the interpreter exits, or it crashes at exit (a segmentation fault, exit 139)."""
+    server = serve(hub, args, say)
+    try:
+        yield server
+    except BaseException:
+        hub.stop.set()  # an error ends the page at once: no pause, no --keep-serving
+        raise
+    finally:
+        finish(hub, server, directory, args, say)
 
 
 def finish(hub: Any, server: Any, directory: Path, args: argparse.Namespace, say: Any) -> None:

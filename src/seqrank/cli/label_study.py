@@ -9,11 +9,10 @@ from typing import Any
 
 from seqrank.cli.label_page import (
     check_address,
-    finish,
     human_overrides,
     human_trainer,
     page_options,
-    serve,
+    page_served,
     server_options,
 )
 from seqrank.cli.options import add_run_options
@@ -86,17 +85,20 @@ def run_study(args: argparse.Namespace, say: Any) -> int:
     hub = open_hub(participant_dir, new.task, page_options(args))
     hub.state.plan(0)
     driver = _Study(hub, str(new.device), participant_dir, say)
-    with stop_on_signals(driver.stop, say) as stop:
-        server = serve(hub, args, say)
-        say(f"participant {args.participant}: methods in the order {', '.join(order)}")
-        try:
-            driver.run(order, configs)
-        except KeyboardInterrupt:
-            hub.stop.set()
-        if hub.stop.is_set():
-            say("stopped; rerun the same command to continue where it stopped")
-        finish(hub, server, participant_dir, args, say)
-    lock.release()
+    try:
+        with (
+            stop_on_signals(driver.stop, say) as stop,
+            page_served(hub, participant_dir, args, say),
+        ):
+            say(f"participant {args.participant}: methods in the order {', '.join(order)}")
+            try:
+                driver.run(order, configs)
+            except KeyboardInterrupt:
+                hub.stop.set()
+            if hub.stop.is_set():
+                say("stopped; rerun the same command to continue where it stopped")
+    finally:
+        lock.release()
     return stop.exit_code(0) if stop.received else 0
 
 

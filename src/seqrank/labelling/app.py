@@ -131,7 +131,7 @@ def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
         hub.clip_source = probe.clip_source
         probe.close()
 
-    def make_frames() -> Callable[[int], np.ndarray]:
+    def make_frames() -> tuple[Callable[[int], np.ndarray], Callable[[], None]]:
         env = make_env(task, 0)
         env.use_fast_rendering()
 
@@ -143,7 +143,7 @@ def open_hub(directory: Path, task: str, options: ServerOptions) -> Hub:
                 from_blob(row["states"]), row["context"], options.size, options.size
             )
 
-        return frames
+        return frames, env.close
 
     hub.renderer = ClipRenderer(directory / "clips", make_frames, options.fps)
     return hub
@@ -164,14 +164,18 @@ def record_task(db: LabelDB, task: str, obs_dim: int, act_dim: int, segment_leng
 
 
 def close_hub(hub: Hub, directory: Path, say: Say) -> None:
+    """Write the export, then end the clip renderer and close the database (even when the
+    export fails: a renderer left running crashes the process at exit)."""
     hub.stop.set()
-    answers = export_file(hub.db, directory / LABELS_FILE)
-    gold = len(hub.db.answered_questions(GOLD_RUN))
-    kept = f" ({gold} answers to gold pairs in the database only)" if gold else ""
-    say(f"{answers} answers saved in {hub.db.path} and {directory / LABELS_FILE}{kept}")
-    if hub.renderer is not None:
-        hub.renderer.close()
-    hub.db.close()
+    try:
+        answers = export_file(hub.db, directory / LABELS_FILE)
+        gold = len(hub.db.answered_questions(GOLD_RUN))
+        kept = f" ({gold} answers to gold pairs in the database only)" if gold else ""
+        say(f"{answers} answers saved in {hub.db.path} and {directory / LABELS_FILE}{kept}")
+    finally:
+        if hub.renderer is not None:
+            hub.renderer.close()
+        hub.db.close()
 
 
 # ---- offline -----------------------------------------------------------------------

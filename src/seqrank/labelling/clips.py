@@ -4,6 +4,10 @@ MuJoCo's headless GL context belongs to the thread that made it, so one worker t
 the simulator used for rendering and serves requests in priority order: a clip the page is
 waiting for goes before clips rendered ahead of time. Clips are cached on disk by segment id
 and written atomically, so a clip file is either complete or absent.
+
+`close()` ends the worker, which frees its GL contexts itself: a context still current on a
+live thread when the interpreter exits (MuJoCo's EGL calls eglTerminate at exit) crashes the
+process with a segmentation fault.
 """
 
 from __future__ import annotations
@@ -24,12 +28,15 @@ URGENT, AHEAD = 0, 1
 
 # Frames for a segment id: (states, context) -> frames; built in the worker thread.
 FrameSource = Callable[[int], np.ndarray]
+# A frame source and what frees its simulator's GL contexts (called on the worker thread).
+FrameMaker = Callable[[], tuple[FrameSource, Callable[[], None]]]
+CLOSE_WAIT_S = 60.0  # a clip being rendered is finished first
 
 
 class ClipRenderer:
     """Renders clips on one worker thread; `clip()` blocks, `ahead()` does not."""
 
-    def __init__(self, directory: Path, make_frames: Callable[[], FrameSource], fps: int = 30):
+    def __init__(self, directory: Path, make_frames: FrameMaker, fps: int = 30):
         self.directory, self.fps = Path(directory), fps
         self._make_frames = make_frames
         self._queue: queue.PriorityQueue[tuple[int, int, int, Future[Path]]] = queue.PriorityQueue()
@@ -51,8 +58,9 @@ class ClipRenderer:
             self._submit(segment_id, AHEAD)
 
     def close(self) -> None:
+        """End the worker (after the clip it is rendering) once its GL contexts are freed."""
         self._queue.put((-1, -1, -1, Future()))
-        self._thread.join(timeout=10)
+        self._thread.join(timeout=CLOSE_WAIT_S)
 
     def _submit(self, segment_id: int, priority: int) -> Future[Path]:
         done: Future[Path] = Future()
@@ -71,21 +79,25 @@ class ClipRenderer:
         return done
 
     def _work(self) -> None:
-        frames_of: FrameSource | None = None
-        while True:
-            priority, _, segment_id, done = self._queue.get()
-            if priority < 0:
-                return
-            if done.done():
-                continue
-            try:
-                if not self.path(segment_id).exists():
-                    if frames_of is None:
-                        frames_of = self._make_frames()
-                    encode_mp4(frames_of(segment_id), self.path(segment_id), self.fps)
-                done.set_result(self.path(segment_id))
-            except Exception as error:  # reported to whoever waits on this clip
-                done.set_exception(error)
-            finally:
-                with self._lock:
-                    self._pending.pop(segment_id, None)
+        made: tuple[FrameSource, Callable[[], None]] | None = None
+        try:
+            while True:
+                priority, _, segment_id, done = self._queue.get()
+                if priority < 0:
+                    return
+                if done.done():
+                    continue
+                try:
+                    if not self.path(segment_id).exists():
+                        if made is None:
+                            made = self._make_frames()
+                        encode_mp4(made[0](segment_id), self.path(segment_id), self.fps)
+                    done.set_result(self.path(segment_id))
+                except Exception as error:  # reported to whoever waits on this clip
+                    done.set_exception(error)
+                finally:
+                    with self._lock:
+                        self._pending.pop(segment_id, None)
+        finally:
+            if made is not None:  # on this thread, where its contexts are current
+                made[1]()
