@@ -25,6 +25,11 @@ Under `--out`: `sac/<task>/seed<k>` (the SAC runs), `datasets/<task>` (the datas
 over seeds (a run's score: the mean of its last `score_last` evaluations, 1 by default):
 mean and IQM, each with a 95% percentile bootstrap interval over seeds.
 
+`--keep DIR` makes a grid outlive its machine: each IQL run's records (its config, metrics
+and summary, not its checkpoint) are copied to `DIR/<task>/<run>` as it finishes, and the
+runs found there count as finished (their records are copied back under `--out` first), so
+a grid whose records are committed continues on a new machine where it stopped.
+
 A finished step (a SAC run's or an IQL run's summary.json, a dataset's folder) is
 skipped; a stopped one continues from its last checkpoint (`seqrank train --resume`;
 `seqrank.offline_train` continues a folder of the same settings). `--shard I/N` runs every
@@ -38,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 import tomllib
@@ -56,6 +62,7 @@ GRID_KEYS = {"tasks", "seeds", "questions", "schemes", "true_reward", "score_las
              "dataset", "offline"}  # fmt: skip
 DATASET_KEYS = {"runs", "run_steps", "run_settings", "sources", "episodes", "seed"}
 BOOTSTRAP = 10_000  # resamples of each interval
+RECORDS = ("config.json", "meta.json", "metrics.jsonl", "summary.json")  # what --keep keeps
 
 
 @dataclass(frozen=True)
@@ -224,7 +231,9 @@ def offline_jobs(grid: Grid, layout: Layout) -> Iterator[tuple[str, Path, Path, 
                 yield name, layout.dataset(task), layout.run(task, arm, seed), settings
 
 
-def run_offline(grid: Grid, layout: Layout, progress: Progress, shard: tuple[int, int]) -> None:
+def run_offline(
+    grid: Grid, layout: Layout, progress: Progress, shard: tuple[int, int], keep: Path | None
+) -> None:
     import seqrank
 
     index, count = shard
@@ -235,7 +244,28 @@ def run_offline(grid: Grid, layout: Layout, progress: Progress, shard: tuple[int
             progress.say(f"skipped {name}: its dataset {dataset} is not made yet")
             continue
         run.parent.mkdir(parents=True, exist_ok=True)
-        progress.step(name, partial(seqrank.offline_train, str(dataset), run, **settings))
+        work = partial(seqrank.offline_train, str(dataset), run, **settings)
+        if progress.step(name, work) and keep is not None:
+            copy_records(run, keep / run.relative_to(layout.out / "runs"))
+
+
+def copy_records(source: Path, target: Path) -> None:
+    """A finished run's records (not its checkpoint), from `source` into `target`."""
+    target.mkdir(parents=True, exist_ok=True)
+    for name in RECORDS:
+        if (source / name).is_file():
+            shutil.copy2(source / name, target / name)
+
+
+def restore_kept(keep: Path, layout: Layout) -> int:
+    """Kept runs that `--out` lacks, copied back there; returns how many."""
+    restored = 0
+    for summary in sorted(keep.glob("*/*/summary.json")):
+        run = layout.out / "runs" / summary.parent.relative_to(keep)
+        if not finished(run):
+            copy_records(summary.parent, run)
+            restored += 1
+    return restored
 
 
 def run_score(summary: dict[str, Any], curve: str, last: int) -> float | None:
@@ -337,13 +367,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="the grid's folder")
     parser.add_argument("--stage", choices=("all", "datasets", "runs", "report"), default="all")
     parser.add_argument("--shard", type=parse_shard, default=(0, 1), help="I/N (0/1)")
+    parser.add_argument("--keep", type=Path, help="where finished runs' records are kept")
     args = parser.parse_args(argv)
     grid, layout = Grid.read(args.grid), Layout(args.out)
     progress = Progress(say=lambda line: print(line, flush=True))
+    if args.keep is not None and (restored := restore_kept(args.keep, layout)):
+        progress.say(f"{restored} finished runs' records restored from {args.keep}")
     if args.stage in ("all", "datasets"):
         make_datasets(grid, layout, progress)
     if args.stage in ("all", "runs"):
-        run_offline(grid, layout, progress, args.shard)
+        run_offline(grid, layout, progress, args.shard, args.keep)
     report = write_report(grid, layout)
     print(markdown(report), end="")
     if progress.failed:

@@ -109,6 +109,28 @@ def test_a_second_call_leaves_finished_runs_alone_and_finishes_a_stopped_one(
             assert path.stat().st_mtime_ns == mtime
 
 
+def test_kept_records_let_a_grid_continue_on_a_new_machine(grid_module, tmp_path, capsys):
+    (tmp_path / "grid.toml").write_text(GRID.replace("seeds = 2", "seeds = 1"))
+    first, keep = tmp_path / "first", tmp_path / "kept"
+    write_dataset(grid_module.Layout(first).dataset(LINE), episodes=12, seed=0)
+    assert grid_module.main([str(tmp_path / "grid.toml"), "--out", str(first),
+                             "--keep", str(keep)]) == 0  # fmt: skip
+    kept = sorted(p.relative_to(keep) for p in keep.rglob("*") if p.is_file())
+    runs = ["true_seed0", "pairwise-q6_seed0", "root-q6_seed0"]
+    assert {p.parent.name for p in kept} == set(runs)
+    assert {p.name for p in kept} == set(grid_module.RECORDS)  # no checkpoint
+    (keep / kept[0].parent / "summary.json").unlink()  # one run not finished when kept
+    capsys.readouterr()
+    second = tmp_path / "second"  # a new machine: the kept records, no runs, a new dataset
+    write_dataset(grid_module.Layout(second).dataset(LINE), episodes=12, seed=0)
+    assert grid_module.main([str(tmp_path / "grid.toml"), "--out", str(second),
+                             "--keep", str(keep), "--stage", "runs"]) == 0  # fmt: skip
+    said = capsys.readouterr().out
+    assert "2 finished runs' records restored" in said and said.count("done IQL") == 1
+    assert json.loads((second / "report.json").read_text())["missing"] == []
+    assert (keep / kept[0].parent / "summary.json").is_file()
+
+
 def test_a_failed_run_is_reported_and_the_grid_goes_on(grid_module, tmp_path, capsys):
     (tmp_path / "grid.toml").write_text(GRID.replace("steps = 20", "steps = 0"))
     write_dataset(grid_module.Layout(tmp_path / "out").dataset(LINE), episodes=12, seed=0)
@@ -161,12 +183,12 @@ def test_a_grid_file_with_an_unknown_key_or_no_dataset_is_refused(grid_module, t
         grid_module.Grid.read(path)
 
 
-def test_the_committed_grid_plans_90_runs_whose_settings_are_valid(grid_module):
+def test_the_committed_grid_plans_45_runs_whose_settings_are_valid(grid_module):
     from seqrank.offline.settings import OfflineConfig, validate
 
     path = SCRIPT.parents[1] / "results" / "offline-metaworld" / "grid.toml"
     grid = grid_module.Grid.read(path)
     jobs = list(grid_module.offline_jobs(grid, grid_module.Layout(Path("out"))))
-    assert len(jobs) == 90 and len({run for _, _, run, _ in jobs}) == 90
+    assert len(jobs) == 45 and len({run for _, _, run, _ in jobs}) == 45
     for _, dataset, _, settings in jobs:
         validate(OfflineConfig(dataset=str(dataset), **settings))
