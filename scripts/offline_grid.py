@@ -5,18 +5,19 @@ A grid file (TOML) names the tasks, the seeds, the question budgets, the schemes
 whether the true reward runs beside them; `[dataset]` says how each task's dataset is made
 and `[offline]` holds `seqrank offline train`'s settings for every run:
 
-    tasks = ["button-press-topdown"]
+    tasks = ["dial-turn"]
     seeds = 5                      # 0 .. 4
     questions = [500, 1000]
     schemes = ["pairwise", "sequential", "root", "ranked"]
     true_reward = true             # the ceiling: IQL on the dataset's own reward
-    [dataset]                      # medium-replay in LiRE's sense: every episode of
-    runs = 3                       #   true-reward SAC runs (`seqrank train --reward true`)
-    run_steps = 100000             #   of this many steps each, all episodes kept
-    run_settings = { scale = "small" }
-    # or played: sources = ["scripted:0.3=0.7", "random=0.3"], episodes = 600
+    [dataset]                      # played by `seqrank dataset make`:
+    sources = ["scripted:0.6", "scripted:1.0", "random"]
+    episodes = 600
+    # or medium-replay in LiRE's sense, every episode of true-reward SAC runs
+    # (`seqrank train --reward true`) of run_steps steps each:
+    # runs = 3, run_steps = 100000, run_settings = { scale = "small" }
     [offline]
-    steps = 100000
+    steps = 30000
     segment_length = 25
 
 Under `--out`: `sac/<task>/seed<k>` (the SAC runs), `datasets/<task>` (the datasets),
@@ -26,9 +27,11 @@ over seeds (a run's score: the mean of its last `score_last` evaluations, 1 by d
 mean and IQM, each with a 95% percentile bootstrap interval over seeds.
 
 `--keep DIR` makes a grid outlive its machine: each IQL run's records (its config, metrics
-and summary, not its checkpoint) are copied to `DIR/<task>/<run>` as it finishes, and the
-runs found there count as finished (their records are copied back under `--out` first), so
-a grid whose records are committed continues on a new machine where it stopped.
+and summary, not its checkpoint) are copied to `DIR/<task>/<run>` as it finishes (or when a
+finished run is found that DIR lacks), and the runs found there count as finished: their
+records are copied back under `--out` first, at every stage. Commit DIR, and the grid
+continues on a new machine where it stopped. The report says when a task's runs trained on
+datasets of different digests (a dataset made again elsewhere that came out otherwise).
 
 A finished step (a SAC run's or an IQL run's summary.json, a dataset's folder) is
 skipped; a stopped one continues from its last checkpoint (`seqrank train --resume`;
@@ -36,7 +39,8 @@ skipped; a stopped one continues from its last checkpoint (`seqrank train --resu
 N-th IQL run from the I-th (start the datasets first, `--stage datasets`, then one process
 a shard); `--stage report` only writes the report.
 
-    python scripts/offline_grid.py results/offline-metaworld/grid.toml --out offline-grid
+    python scripts/offline_grid.py results/offline-metaworld/grid.toml --out offline-grid \
+        --keep results/offline-metaworld/runs
 """
 
 from __future__ import annotations
@@ -238,15 +242,20 @@ def run_offline(
 
     index, count = shard
     for position, (name, dataset, run, settings) in enumerate(offline_jobs(grid, layout)):
-        if position % count != index or finished(run):
+        if position % count != index:
+            continue
+        kept = None if keep is None else keep / run.relative_to(layout.out / "runs")
+        if finished(run):
+            if kept is not None and not finished(kept):  # finished before --keep was given
+                copy_records(run, kept)
             continue
         if not dataset.is_dir():
             progress.say(f"skipped {name}: its dataset {dataset} is not made yet")
             continue
         run.parent.mkdir(parents=True, exist_ok=True)
         work = partial(seqrank.offline_train, str(dataset), run, **settings)
-        if progress.step(name, work) and keep is not None:
-            copy_records(run, keep / run.relative_to(layout.out / "runs"))
+        if progress.step(name, work) and kept is not None:
+            copy_records(run, kept)
 
 
 def copy_records(source: Path, target: Path) -> None:
@@ -290,8 +299,9 @@ def bootstrap(values: list[float], statistic: Callable[[np.ndarray], float]) -> 
 def collect(grid: Grid, layout: Layout) -> dict[str, Any]:
     from seqrank.report.stats import iqm
 
-    rows, missing = [], []
+    rows, missing, digests = [], [], {}
     for task in grid.tasks:
+        seen: set[str] = set()
         for arm, _ in grid.arms():
             scores: dict[str, list[float]] = {"success": [], "return": []}
             seeds = []
@@ -301,6 +311,7 @@ def collect(grid: Grid, layout: Layout) -> dict[str, Any]:
                     missing.append(str(path.parent.relative_to(layout.out)))
                     continue
                 summary = json.loads(path.read_text())
+                seen.add(str(summary.get("dataset_digest")))
                 seeds.append(seed)
                 for key, curve in (("success", "success_curve"), ("return", "eval_curve")):
                     value = run_score(summary, curve, grid.score_last)
@@ -313,7 +324,8 @@ def collect(grid: Grid, layout: Layout) -> dict[str, Any]:
                                 "mean": bootstrap(values, lambda a: float(a.mean())),
                                 "iqm": bootstrap(values, iqm)}  # fmt: skip
             rows.append(row)
-    return {"score_last": grid.score_last, "rows": rows, "missing": missing}
+        digests[task] = sorted(seen)
+    return {"score_last": grid.score_last, "rows": rows, "missing": missing, "digests": digests}
 
 
 def markdown(report: dict[str, Any]) -> str:
@@ -340,6 +352,13 @@ def markdown(report: dict[str, Any]) -> str:
         f"A run's score: the mean of its last {last} evaluation(s). Intervals: 95% "
         f"percentile bootstrap over seeds ({BOOTSTRAP} resamples).",
     ]
+    for task, seen in report["digests"].items():
+        if len(seen) > 1:
+            lines += [
+                "",
+                f"**{task}: its runs trained on {len(seen)} different datasets "
+                f"(digests {', '.join(seen)}); its arms are not comparable.**",
+            ]
     if report["missing"]:
         lines += ["", f"Not finished yet: {len(report['missing'])} runs."]
     return "\n".join(lines) + "\n"

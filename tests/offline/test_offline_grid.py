@@ -131,6 +131,34 @@ def test_kept_records_let_a_grid_continue_on_a_new_machine(grid_module, tmp_path
     assert (keep / kept[0].parent / "summary.json").is_file()
 
 
+def test_runs_finished_before_keep_was_given_are_kept(grid_module, finished_grid, tmp_path):
+    keep = tmp_path / "kept"
+    code = grid_module.main([str(finished_grid / "grid.toml"), "--out",
+                             str(finished_grid / "out"), "--keep", str(keep),
+                             "--stage", "runs"])  # fmt: skip
+    assert code == 0
+    assert len(list(keep.glob("*/*/summary.json"))) == 6
+
+
+def test_the_report_says_when_a_tasks_runs_trained_on_different_datasets(
+    grid_module, finished_grid, tmp_path
+):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(finished_grid / "out" / "runs", out / "runs")
+    path = next(out.glob("runs/*/root-q6_seed1/summary.json"))
+    summary = json.loads(path.read_text())
+    same = summary["dataset_digest"]
+    code = grid_module.main([str(finished_grid / "grid.toml"), "--out", str(out),
+                             "--stage", "report"])  # fmt: skip
+    assert code == 0 and "different datasets" not in (out / "report.md").read_text()
+    path.write_text(json.dumps({**summary, "dataset_digest": "made-elsewhere"}))
+    grid_module.main([str(finished_grid / "grid.toml"), "--out", str(out), "--stage", "report"])
+    said = (out / "report.md").read_text()
+    assert "trained on 2 different datasets" in said and same in said
+
+
 def test_a_failed_run_is_reported_and_the_grid_goes_on(grid_module, tmp_path, capsys):
     (tmp_path / "grid.toml").write_text(GRID.replace("steps = 20", "steps = 0"))
     write_dataset(grid_module.Layout(tmp_path / "out").dataset(LINE), episodes=12, seed=0)
