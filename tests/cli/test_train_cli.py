@@ -51,6 +51,9 @@ def test_train_writes_a_self_describing_run_directory(tmp_path, capsys):
     assert config["scale"] == "small" and config["reward_layers"] == 3  # preset values kept
     meta = json.loads((out / "meta.json").read_text())
     assert meta["seed"] == 0 and meta["packages"]["torch"] and "git_revision" in meta
+    assert meta["cpu"]["model"] and set(meta["cpu"]["flags"]) <= {
+        "avx2", "avx512f", "avx512_bf16", "amx_bf16"
+    }  # fmt: skip
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert {r["kind"] for r in rows} == {"feedback", "eval", "train"}
     train_rows = [r for r in rows if r["kind"] == "train"]

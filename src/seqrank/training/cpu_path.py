@@ -178,6 +178,19 @@ def _measure(shape: UpdateShape, precision: str) -> float:
     return reference / fast
 
 
+VECTOR_FLAGS = ("avx2", "avx512f", "avx512_bf16", "amx_bf16")  # what sets a run's speed
+
+
+def processor() -> dict[str, object]:
+    """The CPU a run ran on, as its meta.json records it: speeds and rounding differ
+    between machines of one kind (native bf16 or avx2 only)."""
+    return {
+        "model": _machine(),
+        "flags": sorted(cpu_flags() & set(VECTOR_FLAGS)),
+        "torch_capability": torch_capability(),
+    }
+
+
 def _machine() -> str:
     model = next(
         (

@@ -27,6 +27,7 @@ import torch
 
 from seqrank.config import TrainConfig
 from seqrank.dirs import LOCK_NAME, DirLock, check_folder, missing_folders, remove_made
+from seqrank.training.cpu_path import processor
 from seqrank.training.sinks import MetricSink, TensorBoardSink, WandbSink
 
 
@@ -229,6 +230,7 @@ def _meta(config: RunSettings, device: str) -> dict[str, Any]:
         "command": sys.argv,
         "python": platform.python_version(),
         "platform": platform.platform(),
+        "cpu": processor(),
         "packages": versions,
         "git_revision": _git_revision(),
     }
