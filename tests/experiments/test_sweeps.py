@@ -30,6 +30,17 @@ def tiny_sweep(out, **extra):
     return expand(data)
 
 
+def tiny_sweep_file(tmp_path):
+    """A sweep file of two tiny runs (pairwise, root) into tmp_path/out."""
+    overrides = "\n".join(f"{key} = {value}" for key, value in TINY.items())
+    spec = tmp_path / "grid.toml"
+    spec.write_text(
+        f'out = "{tmp_path / "out"}"\ndevice = "cpu"\ntasks = ["dmc:cartpole_swingup"]\n'
+        f'schemes = ["pairwise", "root"]\n[overrides]\n{overrides}\n'
+    )
+    return spec
+
+
 def test_expansion_covers_the_grid_with_names_and_settings(tmp_path):
     sweep = expand(
         {
@@ -361,12 +372,7 @@ def test_a_changed_sweep_file_names_the_runs_it_changed_and_reruns_them_when_ask
     from seqrank.dirs import DirLock
     from seqrank.training.runs import RunDir
 
-    overrides = "\n".join(f"{key} = {value}" for key, value in TINY.items())
-    spec = tmp_path / "grid.toml"
-    spec.write_text(
-        f'out = "{tmp_path / "out"}"\ndevice = "cpu"\ntasks = ["dmc:cartpole_swingup"]\n'
-        f'schemes = ["pairwise", "root"]\n[overrides]\n{overrides}\n'
-    )
+    spec = tiny_sweep_file(tmp_path)
     sweep = load_sweep(spec)
     changed, same = sweep.runs  # finished runs: one made before the file changed
     for planned, config in (
@@ -470,12 +476,7 @@ def test_runs_saved_before_a_crowd_default_changed_are_kept_and_resume(tmp_path,
     from seqrank.cli import main
     from seqrank.training.runs import RunDir
 
-    overrides = "\n".join(f"{key} = {value}" for key, value in TINY.items())
-    spec = tmp_path / "grid.toml"
-    spec.write_text(
-        f'out = "{tmp_path / "out"}"\ndevice = "cpu"\ntasks = ["dmc:cartpole_swingup"]\n'
-        f'schemes = ["pairwise", "root"]\n[overrides]\n{overrides}\n'
-    )
+    spec = tiny_sweep_file(tmp_path)
     sweep = load_sweep(spec)
     finished, unfinished = sweep.runs
     assert finished.config.crowd_weighting is not CrowdWeighting.NONE
