@@ -251,3 +251,28 @@ def test_ctrl_c_while_making_a_dataset_says_so_in_one_line_and_leaves_nothing(
     err = capsys.readouterr().err
     assert code == 130 and err == f"interrupted: nothing written (no dataset {out})\n", err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_dataset_being_written_is_not_at_its_place_until_it_is_whole(
+    tmp_path, capsys, monkeypatch
+):
+    """A process killed mid-write (kill -9, no handler runs) must not leave a folder that
+    looks like a finished dataset: the episodes go to a staging folder renamed at the end."""
+    import seqrank.offline.minari_write as minari_write
+
+    write = minari_write._buffers
+    out = tmp_path / "cartpole"
+    seen_while_writing: list[bool] = []
+
+    def watched(episodes):
+        for buffer in write(episodes):
+            seen_while_writing.append(out.exists())
+            yield buffer
+
+    monkeypatch.setattr(minari_write, "_buffers", watched)
+    code = main(["dataset", "make", "--task", CARTPOLE, "--source", "random",
+                 "--episodes", "2", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert seen_while_writing == [False, False]
+    assert load_dataset(out).episode_count == 2
+    assert [p.name for p in tmp_path.iterdir()] == ["cartpole"]  # no staging folder left

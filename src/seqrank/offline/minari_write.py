@@ -8,6 +8,7 @@ a segment's clip) and `task_index` (Meta-World's task, to render it in the right
 
 from __future__ import annotations
 
+import os
 import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -62,9 +63,15 @@ def save_episodes(
     location = check_new(name_or_path)
     obs_dim, act_dim = episodes[0].observations.shape[1], episodes[0].actions.shape[1]
     made = missing_folders(location.folder)
+    # Written beside its place and renamed into it: a process killed mid-write (kill -9)
+    # leaves a hidden staging folder, never a folder that looks like a finished dataset.
+    staging = Location(
+        location.folder.with_name(f".{location.folder.name}.part-{os.getpid()}"),
+        location.dataset_id,
+    )
     try:
-        location.folder.mkdir(parents=True)
-        storage = _new_storage(location, task, obs_dim, act_dim)
+        staging.folder.mkdir(parents=True)
+        storage = _new_storage(staging, task, obs_dim, act_dim)
         storage.update_metadata(
             {
                 "dataset_id": location.dataset_id,
@@ -75,8 +82,9 @@ def save_episodes(
             }
         )
         storage.update_episodes(_buffers(episodes))
+        os.rename(staging.folder, location.folder)
     except BaseException:
-        shutil.rmtree(location.folder, ignore_errors=True)
+        shutil.rmtree(staging.folder, ignore_errors=True)
         remove_made(made)  # the parents made for it, where still empty
         raise
     return location
