@@ -20,6 +20,13 @@ from seqrank.theory import exact_sequential_pairs, root_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs/guides/which-scheme.md"
+MECHANISM_WINDOW_OPEN = "results/reward-bench/mechanism/window-open/summary.json"
+# each scheme's questions against half as many pairwise ones, as schemes.md pairs them
+PER_CLIP_PAIRED = [
+    f"| window-open | uniform | {scheme} | {2 * q} | {q} |"
+    for scheme in ("sequential", "root")
+    for q in (100, 300, 500)
+]
 SCHEMES = ("pairwise", "sequential", "root", "ranked")
 
 # (file, phrase): the phrase is on the page as the file says it (whitespace aside)
@@ -139,16 +146,18 @@ def per_question() -> list[str]:
 
 
 def per_clip() -> list[str]:
-    """window-open, one seed: clips, annotator minutes and the measures at each budget."""
-    summary = data("results/reward-bench/window-open/stops/summary.json")
+    """window-open's pool, 10 seeds, uniform draws: clips, annotator minutes and the
+    measures at each budget."""
+    summary = data(MECHANISM_WINDOW_OPEN)
     rows = []
-    for scheme in ("pairwise", "root"):
-        for questions in (100, 300, 500, 1000):
+    for scheme in ("pairwise", "sequential", "root"):
+        for questions in (100, 500, 1000):
             e = only(summary, teacher="oracle", learner="plain", scheme=scheme, questions=questions)
-            assert e["seeds"] == 1
-            measures = (f"{e[key][0]:.3f}" for key in ("accuracy", "top_accuracy", "regret"))
+            assert e["seeds"] == 10
+            means = (f"{e[key][0]:.3f}" for key in ("top_accuracy", "top_recall", "regret"))
             minutes = f"{e['annotator_seconds'] / 60:.1f}"
-            rows.append(row(scheme, str(questions), f"{e['clips']:.0f}", minutes, *measures))
+            cells = (str(questions), f"{e['clips']:.0f}", minutes, ci(e["accuracy"]), *means)
+            rows.append(row(scheme, *cells))
     return rows
 
 
@@ -228,14 +237,21 @@ def online() -> list[str]:
     return rows
 
 
+def paired_per_clip() -> list[str]:
+    """The page's per-clip comparisons: whole lines of the grid's schemes.md."""
+    lines = (ROOT / "results/reward-bench/mechanism/window-open/schemes.md").read_text()
+    found = [line for line in lines.splitlines() if line.startswith(tuple(PER_CLIP_PAIRED))]
+    assert len(found) == len(PER_CLIP_PAIRED)
+    return found
+
+
 def computed_phrases() -> list[str]:
-    clips = data("results/reward-bench/window-open/stops/summary.json")
+    clips = data(MECHANISM_WINDOW_OPEN)
 
     def window(scheme: str, questions: int) -> dict[str, Any]:
         return only(clips, teacher="oracle", learner="plain", scheme=scheme, questions=questions)
 
     minutes = {s: f"{window(s, 100)['annotator_seconds'] / 60:.1f}" for s in ("root", "pairwise")}
-    root500, pairwise300 = window("root", 500), window("pairwise", 300)
     sweep = data("results/sweep-walker-cpu/report.json")["table"]
     ppo = data("results/sb3/report.json")["table"]
     finished = len(list((ROOT / "results/online-window-open-cpu/runs").rglob("summary.json")))
@@ -255,9 +271,6 @@ def computed_phrases() -> list[str]:
         f"100 root questions cost {minutes['root']} annotator minutes against "
         f"{minutes['pairwise']} for pairwise",
         f"a session of 100 questions shows {window('root', 100)['clips']:.0f} clips",
-        f"500 root questions take {root500['annotator_seconds'] / 60:.1f} minutes and reach "
-        f"{root500['accuracy'][0]:.3f}; 300 pairwise questions take "
-        f"{pairwise300['annotator_seconds'] / 60:.1f} and reach {pairwise300['accuracy'][0]:.3f}",
         # seqrank theory's expectation for a session of M = 101 segments
         "session of 100 questions (101 segments",
         f"expects {root_pairs(101) - 100:.1f} inferred pairs for root and "
@@ -273,7 +286,8 @@ def computed_phrases() -> list[str]:
 
 
 def table_rows() -> list[str]:
-    return [*per_question(), *per_clip(), *under_mistake(), *online_mistake(), *online()]
+    tables = [*per_question(), *per_clip(), *paired_per_clip(), *under_mistake()]
+    return [*tables, *online_mistake(), *online()]
 
 
 def test_every_table_row_is_rebuilt_from_its_results_file():
