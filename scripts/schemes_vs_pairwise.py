@@ -8,6 +8,7 @@ a scheme's 2q questions against pairwise's q, where the grid has both budgets). 
 difference is a mean with its 95% interval over seeds (`bounded_interval`, as effects.md).
 
     python scripts/schemes_vs_pairwise.py GRID_FOLDER [--budgets 100,500,1000]
+        [--against-order uniform]   (every order's schemes against pairwise in one order)
 """
 
 from __future__ import annotations
@@ -54,14 +55,16 @@ def difference(
     cell: tuple[str, str, str, int],
     base_questions: int,
     measure: str,
+    base_order: str | None = None,
 ) -> str:
-    """`cell`'s measure minus pairwise's at `base_questions`, paired by seed ('-' if none)."""
-    task, order = cell[0], cell[1]
+    """`cell`'s measure minus pairwise's at `base_questions` (in `base_order`, by default
+    the cell's), paired by seed ('-' if none)."""
+    base = (cell[0], base_order or cell[1], "pairwise", base_questions)
+    if base == cell:
+        return "-"
     seeds = sorted(k[4] for k in rows if k[:4] == cell)
     pairs = [
-        (rows[(*cell, s)][measure], rows[(task, order, "pairwise", base_questions, s)][measure])
-        for s in seeds
-        if (task, order, "pairwise", base_questions, s) in rows
+        (rows[(*cell, s)][measure], rows[(*base, s)][measure]) for s in seeds if (*base, s) in rows
     ]
     if not pairs:
         return "-"
@@ -72,23 +75,29 @@ def difference(
     return f"{mean:+.3f} [{lower:+.3f}, {upper:+.3f}]"
 
 
-def per_question(rows: dict[Key, dict[str, Any]], budgets: list[int]) -> list[str]:
-    lines = ["## Per question (the same budget)", ""]
+def per_question(
+    rows: dict[Key, dict[str, Any]], budgets: list[int], base_order: str | None = None
+) -> list[str]:
+    against = f" against pairwise in {base_order} order" if base_order else ""
+    lines = [f"## Per question (the same budget){against}", ""]
     for task, order in sorted({(k[0], k[1]) for k in rows}):
-        schemes = [s for s in SCHEMES if any(k[:3] == (task, order, s) for k in rows)]
+        named = (("pairwise",) if base_order and order != base_order else ()) + SCHEMES
+        schemes = [s for s in named if any(k[:3] == (task, order, s) for k in rows)]
         lines += [f"### {task}, {order} order", ""]
         lines += ["| measure | scheme | " + " | ".join(f"{q} questions" for q in budgets) + " |"]
         lines += ["|---|---|" + "---|" * len(budgets)]
         for measure in DIFFERENCES:
             for scheme in schemes:
-                cells = [difference(rows, (task, order, scheme, q), q, measure) for q in budgets]
+                cell = (task, order, scheme)
+                cells = [difference(rows, (*cell, q), q, measure, base_order) for q in budgets]
                 lines += [f"| {LABELS[measure]} | {scheme} | " + " | ".join(cells) + " |"]
         lines += [""]
     return lines
 
 
-def per_clip(rows: dict[Key, dict[str, Any]]) -> list[str]:
-    lines = ["## Per clip watched (a scheme's 2q questions against pairwise's q)", ""]
+def per_clip(rows: dict[Key, dict[str, Any]], base_order: str | None = None) -> list[str]:
+    against = f" in {base_order} order" if base_order else ""
+    lines = [f"## Per clip watched (a scheme's 2q questions against pairwise's q{against})", ""]
     lines += ["| task | order | scheme | questions | pairwise's | accuracy difference |"]
     lines += ["|---|---|---|---|---|---|"]
     budgets = sorted({k[3] for k in rows})
@@ -96,7 +105,8 @@ def per_clip(rows: dict[Key, dict[str, Any]]) -> list[str]:
         for scheme in ("sequential", "root"):
             for q in budgets:
                 if 2 * q in budgets and any(k[:4] == (task, order, scheme, 2 * q) for k in rows):
-                    found = difference(rows, (task, order, scheme, 2 * q), q, "accuracy")
+                    cell = (task, order, scheme, 2 * q)
+                    found = difference(rows, cell, q, "accuracy", base_order)
                     lines += [f"| {task} | {order} | {scheme} | {2 * q} | {q} | {found} |"]
     return lines
 
@@ -105,6 +115,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("grid", type=Path, help="a reward-bench folder with rows.jsonl")
     parser.add_argument("--budgets", default="100,500,1000", help="(100,500,1000)")
+    parser.add_argument(
+        "--against-order",
+        help="compare every order's schemes with pairwise in this order (default: the same)",
+    )
     args = parser.parse_args()
     rows = read_rows(args.grid)
     budgets = [int(b) for b in args.budgets.split(",")]
@@ -115,8 +129,8 @@ def main() -> None:
         clips = ["## Per clip watched", "", "Not compared: in a grid of windows a scheme's 2q "
                  "questions and pairwise's q are scored on different windows."]  # fmt: skip
     else:
-        clips = per_clip(rows)
-    print("\n".join(lines + per_question(rows, budgets) + clips))
+        clips = per_clip(rows, args.against_order)
+    print("\n".join(lines + per_question(rows, budgets, args.against_order) + clips))
 
 
 if __name__ == "__main__":

@@ -62,7 +62,6 @@ QUOTED = [
     ("results/reward-learners/README.md", "200 questions"),
     ("results/reward-learners/README.md", "at 25 and 50 questions"),
     ("results/reward-bench/cheetah_run/README.md", "labelled pairs at 200"),
-    ("results/reward-bench/window-open/README.md", "root 153 and sequential 35"),
     (
         "results/reward-bench/window-open/README.md",
         "the paper counts 640 for root at its first reward update",

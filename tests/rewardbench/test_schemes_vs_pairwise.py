@@ -44,3 +44,22 @@ def test_differences_are_paired_by_seed_per_question_and_per_clip(script, tmp_pa
     assert script.difference(loaded, ("t", "uniform", "root", 10), 10, "accuracy") == "-"
     clip_rows = [line for line in script.per_clip(loaded) if line.startswith("| t |")]
     assert clip_rows == [f"| t | uniform | root | 20 | 10 | {per_clip} |"]
+
+
+def test_another_order_is_set_against_pairwise_in_the_order_named(script, tmp_path):
+    rows = [
+        _row("pairwise", 0, 10, 0.60), _row("pairwise", 1, 10, 0.70),
+        {**_row("pairwise", 0, 10, 0.50), "order": "collection"},
+        {**_row("pairwise", 1, 10, 0.50), "order": "collection"},
+        {**_row("root", 0, 10, 0.80), "order": "collection"},
+        {**_row("root", 1, 10, 0.80), "order": "collection"},
+    ]  # fmt: skip
+    (tmp_path / "rows.jsonl").write_text("\n".join(json.dumps(r) for r in rows))
+    loaded = script.read_rows(tmp_path)
+    cell = ("t", "collection", "root", 10)
+    assert script.difference(loaded, cell, 10, "accuracy").startswith("+0.300 [")
+    assert script.difference(loaded, cell, 10, "accuracy", "uniform").startswith("+0.150 [")
+    # pairwise in collection order has a row of its own against uniform pairwise
+    lines = script.per_question(loaded, [10], "uniform")
+    assert any(line.startswith("| accuracy | pairwise | -0.150 [") for line in lines)
+    assert script.difference(loaded, ("t", "uniform", "pairwise", 10), 10, "accuracy") == "-"
