@@ -36,6 +36,9 @@ def test_a_run_with_the_learner_trains_logs_it_and_resumes_exactly(name, tmp_pat
     finished = run(tmp_path / "finished", config)
     sessions = [r for r in finished.run_dir.read_metrics() if r["kind"] == "feedback"]
     assert len(sessions) == 3
+    # the summary says which update the run took: these cases name the path, in fp32
+    summary = finished.run_dir.read_summary()
+    assert (summary["update_path"], summary["precision"]) == (settings["path"], "fp32")
     if name == "surf":
         # 10 per question asked so far: 10 questions a session
         assert [r["surf_unlabelled_pairs"] for r in sessions] == [100, 200, 300]

@@ -34,6 +34,7 @@ from seqrank.training.backbones import AgentUpdate
 from seqrank.training.checkpoint import Checkpointed
 from seqrank.training.critic_reset import reset_critic
 from seqrank.training.feedback_phase import feedback_step, learn_from_session
+from seqrank.training.runtime import Runtime
 from seqrank.training.sessions import AnsweredSession, FeedbackSessions
 from seqrank.training.state import episode_seed
 
@@ -45,6 +46,7 @@ class Run(Checkpointed, Protocol):
     """What the loop drives: a run's parts (a `Trainer` assembles them)."""
 
     config: TrainConfig
+    runtime: Runtime
     sessions: FeedbackSessions
     update: AgentUpdate
     progress: Progress | None
@@ -92,7 +94,7 @@ def run_loop(t: Run) -> dict[str, Any]:
             raise RunStopped(c.step)
     if c.last_checkpoint_step != c.step:  # a finished run always leaves its final policy
         t.save_checkpoint()
-    summary = metrics.summary(config, c, t.run_dir.read_metrics())
+    summary = metrics.summary(config, c, t.run_dir.read_metrics(), t.runtime)
     t.run_dir.write_summary(summary)
     return summary
 

@@ -12,6 +12,7 @@ from seqrank.feedback.reliability import Reliability
 from seqrank.reward.model import RewardTrainResult
 from seqrank.training.eval_worker import score_row
 from seqrank.training.evaluation import PolicyScore
+from seqrank.training.runtime import Runtime
 from seqrank.training.state import Counters
 
 TRAIN_LOG_EVERY = 1_000  # steps between `train` rows
@@ -125,7 +126,11 @@ def live(c: Counters) -> dict[str, Any]:
     }
 
 
-def summary(config: TrainConfig, c: Counters, rows: list[dict[str, Any]]) -> dict[str, Any]:
+def summary(
+    config: TrainConfig, c: Counters, rows: list[dict[str, Any]], runtime: Runtime
+) -> dict[str, Any]:
+    """The finished run's numbers, and the update path and precision of the process that
+    finished it (`--path auto` is resolved again on a machine that resumes a run)."""
     evals = [r for r in rows if r["kind"] == "eval"]
     asks = config.reward.asks  # a baseline asks nothing: no scheme or teacher to name
     return {
@@ -145,5 +150,7 @@ def summary(config: TrainConfig, c: Counters, rows: list[dict[str, Any]]) -> dic
         "inferred_wrong": c.inferred_wrong,
         "wall_seconds": c.train_seconds,
         "steps_per_second": c.steps_per_second,
+        "update_path": runtime.path,
+        "precision": runtime.precision,
         "eval_curve": [(r["step"], r["eval_return"]) for r in evals],
     }
