@@ -122,6 +122,9 @@ def main() -> None:
     args = parser.parse_args()
     rows = read_rows(args.grid)
     budgets = [int(b) for b in args.budgets.split(",")]
+    orders = sorted({k[1] for k in rows})
+    if args.against_order and args.against_order not in orders:
+        parser.error(f"--against-order {args.against_order!r}: the grid has {', '.join(orders)}")
     title = f"# Schemes against pairwise questions, paired by seed: {args.grid}"
     lines = [title, "", "Mean difference [95% interval over seeds]; `-`: not in the grid.", ""]
     settings = json.loads((args.grid / "settings.json").read_text())

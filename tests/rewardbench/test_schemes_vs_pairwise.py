@@ -63,3 +63,13 @@ def test_another_order_is_set_against_pairwise_in_the_order_named(script, tmp_pa
     lines = script.per_question(loaded, [10], "uniform")
     assert any(line.startswith("| accuracy | pairwise | -0.150 [") for line in lines)
     assert script.difference(loaded, ("t", "uniform", "pairwise", 10), 10, "accuracy") == "-"
+
+
+def test_an_order_the_grid_lacks_is_refused_in_one_line(script, tmp_path, monkeypatch, capsys):
+    (tmp_path / "rows.jsonl").write_text(json.dumps(_row("pairwise", 0, 10, 0.6)))
+    (tmp_path / "settings.json").write_text("{}")
+    monkeypatch.setattr("sys.argv", ["x", str(tmp_path), "--against-order", "random"])
+    with pytest.raises(SystemExit) as stopped:
+        script.main()
+    assert stopped.value.code == 2
+    assert "--against-order 'random': the grid has uniform" in capsys.readouterr().err
