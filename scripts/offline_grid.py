@@ -392,10 +392,14 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(say=lambda line: print(line, flush=True))
     if args.keep is not None and (restored := restore_kept(args.keep, layout)):
         progress.say(f"{restored} finished runs' records restored from {args.keep}")
-    if args.stage in ("all", "datasets"):
-        make_datasets(grid, layout, progress)
-    if args.stage in ("all", "runs"):
-        run_offline(grid, layout, progress, args.shard, args.keep)
+    try:
+        if args.stage in ("all", "datasets"):
+            make_datasets(grid, layout, progress)
+        if args.stage in ("all", "runs"):
+            run_offline(grid, layout, progress, args.shard, args.keep)
+    except KeyboardInterrupt:  # a stop asked for, not a failure: no traceback
+        print(f"stopped after {len(progress.done)} step(s); the same command continues the grid")
+        return 130
     report = write_report(grid, layout)
     print(markdown(report), end="")
     if progress.failed:

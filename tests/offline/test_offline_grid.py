@@ -169,6 +169,24 @@ def test_a_failed_run_is_reported_and_the_grid_goes_on(grid_module, tmp_path, ca
     assert "Not finished yet: 6 runs." in (tmp_path / "out" / "report.md").read_text()
 
 
+def test_a_stop_asked_for_ends_in_one_line_not_a_traceback(
+    grid_module, tmp_path, capsys, monkeypatch
+):
+    (tmp_path / "grid.toml").write_text(GRID)
+
+    def interrupted(*_args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(grid_module, "run_offline", interrupted)
+    code = grid_module.main([str(tmp_path / "grid.toml"), "--out", str(tmp_path / "out"),
+                             "--stage", "runs"])  # fmt: skip
+    said = capsys.readouterr()
+    assert code == 130 and "Traceback" not in said.out + said.err
+    assert said.out.strip().splitlines()[-1] == (
+        "stopped after 0 step(s); the same command continues the grid"
+    )
+
+
 def test_a_medium_replay_grid_plans_valid_sac_and_dataset_commands(grid_module, tmp_path):
     grid_file = tmp_path / "grid.toml"
     grid_file.write_text(
