@@ -249,6 +249,32 @@ def test_re_check_settings_split_only_checked_runs(tmp_path):
     ]
 
 
+def test_settings_are_compared_as_the_runs_read_them(tmp_path):
+    """A run made before a setting existed reads today's default (its config.json lacks
+    it), and one teacher never reads the crowd's settings, whose default changed (none to
+    drop): such runs stay one method. Runs that differ in what they read stay apart, and a
+    crowd's runs that differ in its weighting are reported apart."""
+    fake_run(tmp_path / "old_0", "walker_walk", "root", 0, [1.0, 2.0], crowd_weighting="none")
+    new = dict(reward_stop_on="all", crowd_weighting="drop", overlap_until=50)
+    fake_run(tmp_path / "new_1", "walker_walk", "root", 1, [1.0, 4.0], **new)
+    fake_run(tmp_path / "asked_2", "walker_walk", "root", 2, [1.0, 3.0], reward_stop_on="asked")
+    crowd = "crowd:oracle+mistake"
+    for seed, use in enumerate(["none", "drop"]):
+        settings = dict(teacher=crowd, crowd_weighting=use)
+        fake_run(
+            tmp_path / f"crowd_{seed}", "walker_walk", "pairwise", seed, [1.0, 3.0], **settings
+        )
+    assert main(["report", str(tmp_path), "--bootstrap", "300", "--out", str(tmp_path / "r")]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    cells = {c["method"]: c["n"] for c in report["table"]}
+    assert cells == {
+        "root/oracle/reward_stop_on=all": 2,
+        "root/oracle/reward_stop_on=asked": 1,
+        f"pairwise/{crowd}/crowd_weighting=drop": 1,
+        f"pairwise/{crowd}/crowd_weighting=none": 1,
+    }
+
+
 def test_options_beyond_the_paper_name_their_own_methods(tmp_path):
     fake_run(tmp_path / "root_plain", "walker_walk", "root", 0, [1.0, 300.0])
     fake_run(tmp_path / "root_checked", "walker_walk", "root", 0, [1.0, 350.0], augment="checked")

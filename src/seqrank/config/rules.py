@@ -88,7 +88,12 @@ CROWD_SETTINGS = ("overlap", "overlap_until", "closure_checks", "crowd_weighting
 def unread_crowd_settings(config: TrainConfig) -> frozenset[str]:
     """The crowd's settings where no crowd answers (one teacher, no team): they never reach
     the run, so a default changed since it was saved neither changes nor stops it."""
-    if config.teacher_spec.kind == "crowd" or config.annotators:
+    return crowd_settings_unread_by(config.teacher, config.annotators)
+
+
+def crowd_settings_unread_by(teacher: str, annotators: str) -> frozenset[str]:
+    """`unread_crowd_settings` from a saved config's teacher and annotators."""
+    if parse_teacher(teacher).kind == "crowd" or annotators:
         return frozenset()
     return frozenset(CROWD_SETTINGS)
 

@@ -11,11 +11,16 @@ settings give one true-reward method, and a seed it ran once per variant counts 
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import MISSING, fields
+from enum import Enum
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 from seqrank.choices import RewardSignal
-from seqrank.config import unread_settings
+from seqrank.config import TrainConfig, unread_settings
+from seqrank.config.rules import CROWD_SETTINGS, crowd_settings_unread_by
+from seqrank.offline.settings import OfflineConfig
 from seqrank.report.collect import RunResult
 
 # settings that do not change what a run learns, or are already in the method's name
@@ -57,9 +62,7 @@ def split_by_settings(
         if not keys:
             continue
         for run in members:
-            split[run.path] = (
-                name + "/" + ",".join(f"{k}={_text(run.settings.get(k))}" for k in keys)
-            )
+            split[run.path] = name + "/" + ",".join(f"{k}={_text(_as_read(run, k))}" for k in keys)
         parts = sorted({split[run.path] for run in members})
         notes.append(
             f"{task}: {name} runs differ in {', '.join(keys)}; reported apart as "
@@ -80,8 +83,34 @@ def _differing(members: list[RunResult]) -> list[str]:
     }
     if members[0].settings.get("augment", "full") != "checked":  # one per cell
         ignored |= CHECKED_ONLY
+    ignored |= frozenset.intersection(*(_crowd_unread(run) for run in members))
     keys = {key for run in members for key in run.settings} - ignored
-    return sorted(k for k in keys if len({repr(run.settings.get(k)) for run in members}) > 1)
+    return sorted(k for k in keys if len({repr(_as_read(run, k)) for run in members}) > 1)
+
+
+def _crowd_unread(run: RunResult) -> frozenset[str]:
+    if not run.teacher:  # an offline true-reward run records none: it asks nobody
+        return frozenset(CROWD_SETTINGS)
+    return crowd_settings_unread_by(run.teacher, run.settings.get("annotators") or "")
+
+
+def _as_read(run: RunResult, key: str) -> Any:
+    """A run's setting as the run reads it: absent from an older config.json, today's
+    default (what `Run.read_config` and `OfflineConfig.from_dict` fill in)."""
+    if key in run.settings:
+        return run.settings[key]
+    return _defaults(bool(run.settings.get("dataset"))).get(key)
+
+
+@cache
+def _defaults(offline: bool) -> dict[str, Any]:
+    config = OfflineConfig if offline else TrainConfig
+    # as config.json writes them: an enum by its value
+    return {
+        f.name: f.default.value if isinstance(f.default, Enum) else f.default
+        for f in fields(config)
+        if f.default is not MISSING
+    }
 
 
 def _never_splitting(run: RunResult) -> set[str]:
