@@ -148,30 +148,118 @@ def _crowd_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [{**r, "crowd": crowd_of(r["teacher"])} for r in rows if r.get("members")]
 
 
-def use_gain_table(rows: list[dict[str, Any]]) -> list[str]:
-    """Each use's accuracy minus labels as answered, paired by seed (the same answers)."""
+def _paired_gains(rows: list[dict[str, Any]]) -> dict[tuple[str, str, int], dict[str, Any]]:
+    """For each crowd, scheme and budget: accuracy as answered by seed, and each use's
+    gain over it, paired by seed (the same answers)."""
     by: dict[tuple[str, str, int], dict[str, dict[int, float]]] = defaultdict(
         lambda: defaultdict(dict)
     )
     for row in _crowd_rows(rows):
         key = (row["crowd"], row["scheme"], row["questions"])
         by[key][row["weighting"]][row["seed"]] = row["accuracy"]
-    uses = sorted({w for sides in by.values() for w in sides} - {"none"})
+    cells: dict[tuple[str, str, int], dict[str, Any]] = {}
+    for key, sides in sorted(by.items()):
+        plain = sides.get("none", {})
+        gains = {
+            use: [side[s] - plain[s] for s in sorted(set(side) & set(plain))]
+            for use, side in sides.items()
+            if use != "none"
+        }
+        cells[key] = {"none": list(plain.values()), "gains": gains}
+    return cells
+
+
+def use_gain_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Each use's accuracy minus labels as answered, paired by seed (the same answers)."""
+    cells = _paired_gains(rows)
+    uses = sorted({use for cell in cells.values() for use in cell["gains"]})
     lines = [
         "| crowd | scheme | questions | as answered | "
         + " | ".join(f"{use} - as answered [95% CI] (seeds)" for use in uses)
         + " |",
         "|---|---|---|---|" + "---|" * len(uses),
     ]
-    for (crowd, scheme, questions), sides in sorted(by.items()):
-        cells = []
-        for use in uses:
-            seeds = sorted(set(sides.get(use, {})) & set(sides.get("none", {})))
-            gains = [sides[use][s] - sides["none"][s] for s in seeds]
-            cells.append(f"{_ci(gains, -1.0, 1.0)} ({len(seeds)})" if gains else "-")
-        plain = _ci(list(sides.get("none", {}).values()))
-        lines.append(f"| {crowd} | {scheme} | {questions} | {plain} | " + " | ".join(cells) + " |")
+    for (crowd, scheme, questions), cell in cells.items():
+        gains = [cell["gains"].get(use, []) for use in uses]
+        shown = [f"{_ci(g, -1.0, 1.0)} ({len(g)})" if g else "-" for g in gains]
+        lines.append(
+            f"| {crowd} | {scheme} | {questions} | {_ci(cell['none'])} | "
+            + " | ".join(shown)
+            + " |"
+        )
     return lines
+
+
+GOAL_QUESTIONS = 100  # issue 49's goals are read at this budget
+GOAL_USE = "drop"  # the default use of the estimate
+
+
+def goals_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Issue 49's goals against the rows: the default use's gain with a bad member (its
+    95% interval above 0 at three schemes or more), its cost with an all-good crowd (no
+    mean below -0.01 at any budget), and the flags by the goal budget (the bad member in 9
+    of 10 seeds or more, each good member in at most 1 of 10)."""
+    cells = _paired_gains(rows)
+    lines = ["| goal | crowd | measured | met |", "|---|---|---|---|"]
+    for crowd in sorted({c for c, _, _ in cells} - {"all good"}):
+        above = sorted(
+            scheme
+            for (c, scheme, q), cell in cells.items()
+            if c == crowd and q == GOAL_QUESTIONS and _lower(cell["gains"].get(GOAL_USE)) > 0
+        )
+        lines.append(
+            f"| {GOAL_USE} above as answered at {GOAL_QUESTIONS} questions (interval above 0) "
+            f"at 3 schemes or more | {crowd} | {len(above)}: {', '.join(above) or 'none'} "
+            f"| {_yes(len(above) >= 3)} |"
+        )
+    costs = [
+        (float(np.mean(cell["gains"][GOAL_USE])), scheme, q)
+        for (c, scheme, q), cell in cells.items()
+        if c == "all good" and cell["gains"].get(GOAL_USE)
+    ]
+    if costs:
+        worst, scheme, q = min(costs)
+        lines.append(
+            f"| {GOAL_USE} costs no more than 0.01 anywhere (mean) | all good "
+            f"| lowest {worst:+.3f} ({scheme}, {q} questions) | {_yes(worst >= -0.01)} |"
+        )
+    for bad, rule in ((True, "the bad member flagged in 9 of 10 or more"),
+                      (False, "each good member flagged in at most 1 of 10")):  # fmt: skip
+        rates = _flag_rates(rows, bad)
+        if rates:
+            rate, where = (min if bad else max)(rates)
+            met = rate >= 0.9 if bad else rate <= 0.1
+            lines.append(
+                f"| {rule}, at {GOAL_QUESTIONS} questions | every crowd | "
+                f"{'lowest' if bad else 'highest'} {rate:.0%} ({where}) | {_yes(met)} |"
+            )
+    return lines
+
+
+def _yes(met: bool) -> str:
+    return "yes" if met else "no"
+
+
+def _lower(gains: list[float] | None) -> float:
+    if not gains:
+        return float("-inf")
+    low = bounded_interval(gains, -1.0, 1.0)[1]
+    return float("-inf") if low is None else low
+
+
+def _flag_rates(rows: list[dict[str, Any]], bad: bool) -> list[tuple[float, str]]:
+    """The share of seeds each member (bad ones, or good ones) is flagged in at the goal
+    budget, by crowd, scheme and member, with where."""
+    flags: dict[tuple[str, str, str], list[bool]] = defaultdict(list)
+    for row in _crowd_rows(rows):
+        if row["weighting"] == "none" and row["questions"] == GOAL_QUESTIONS:
+            for name, member in row["members"].items():
+                if (name in ("bad", "noisy")) == bad:
+                    flags[(row["crowd"], row["scheme"], name)].append(_flagged(member))
+    return [
+        (sum(f) / len(f), f"{sum(f)}/{len(f)}: {crowd}, {scheme}, {name}")
+        for (crowd, scheme, name), f in sorted(flags.items())
+    ]
 
 
 def flag_table(rows: list[dict[str, Any]]) -> list[str]:
@@ -284,6 +372,7 @@ def main() -> None:
                 threshold_table,
             ),
             ("What the people answered (second opinions included)", person_answers_table),
+            ("Issue 49's goals", goals_table),
         ]
     for title, table in sections:
         print(f"### {title}\n")
